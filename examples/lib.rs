@@ -1,0 +1,1 @@
+//! Runnable examples of yarnify live beside this file: `serial/`.

@@ -1,0 +1,48 @@
+//! yarnify's behavioural gate.
+//!
+//! This crate owns the metrics of SPEC §6 ([`metrics`]), the `check` gate
+//! built from them ([`check`]), and the `yarn-gate` command-line tool. It
+//! drives backends only through the [`yarn_model::Backend`] trait, so every
+//! backend is measured by the same code.
+
+#![forbid(unsafe_code)]
+
+pub mod check;
+pub mod metrics;
+
+use yarn_model::BackendError;
+use yarn_topology::TopologyError;
+
+/// Why the gate could not run (as opposed to running and failing).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum GateError {
+    /// The patch could not be built.
+    #[error(transparent)]
+    Topology(#[from] TopologyError),
+    /// The backend refused or failed.
+    #[error(transparent)]
+    Backend(#[from] BackendError),
+    /// Curl needs interior nodes: at least 3 stitches each way.
+    #[error("a {width}x{height} patch has no interior stitches to fit a mid-plane to; use at least 3x3")]
+    TooSmall {
+        /// Patch width.
+        width: usize,
+        /// Patch height.
+        height: usize,
+    },
+    /// The backend name is not known.
+    #[error("unknown backend `{name}`; choose one of: {known}")]
+    UnknownBackend {
+        /// The name given.
+        name: String,
+        /// The names accepted.
+        known: String,
+    },
+}
+
+impl From<yarn_model::ParamError> for GateError {
+    fn from(e: yarn_model::ParamError) -> Self {
+        GateError::Backend(e.into())
+    }
+}

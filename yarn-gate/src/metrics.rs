@@ -1,0 +1,280 @@
+//! The behavioural metrics of SPEC §6, as plain functions over a backend
+//! and its states: the relaxation with its energy trace, edge curl, and
+//! directional stiffness.
+
+use nalgebra::{Matrix3, Vector3};
+use serde::Serialize;
+use yarn_model::{Backend, BackendError, Energy, Model, State, step, widen};
+use yarn_topology::{Fabric, Pin, Side};
+
+/// One sample of a relaxation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Sample {
+    /// Substeps taken when sampled.
+    pub substep: u64,
+    /// Total energy (potential + kinetic).
+    pub total: f64,
+    /// Bending energy.
+    pub bend: f64,
+    /// Largest node speed.
+    pub max_speed: f64,
+}
+
+/// The record of a free relaxation.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Relaxation {
+    /// Samples at regular intervals, first at substep 0, last at the end.
+    pub trace: Vec<Sample>,
+    /// The largest max-speed seen in any sample.
+    pub peak_speed: f64,
+}
+
+impl Relaxation {
+    /// The first sample.
+    pub fn initial(&self) -> &Sample {
+        &self.trace[0]
+    }
+
+    /// The last sample.
+    pub fn last(&self) -> &Sample {
+        &self.trace[self.trace.len() - 1]
+    }
+}
+
+/// Energy of a backend's current state, measured in `f64` against `scene`.
+///
+/// # Errors
+/// Whatever the backend reports reading its state.
+pub fn measure<B: Backend>(backend: &mut B, scene: &Model<f64>) -> Result<(Energy, State<f64>), BackendError> {
+    let state = backend.state()?.cast::<f64>();
+    Ok((step::energy(scene, &state), state))
+}
+
+/// Advance `backend` by `steps` substeps, sampling energy and speed
+/// `samples` times along the way (plus once at the start). `progress` is
+/// called with the substeps done so far.
+///
+/// # Errors
+/// Whatever the backend reports.
+pub fn relax<B: Backend>(
+    backend: &mut B,
+    scene: &Model<f64>,
+    steps: u64,
+    samples: u64,
+    mut progress: impl FnMut(u64),
+) -> Result<Relaxation, BackendError> {
+    let samples = samples.clamp(1, steps.max(1));
+    let mut trace = Vec::with_capacity(samples as usize + 1);
+    let mut record = |backend: &mut B, substep: u64| -> Result<(), BackendError> {
+        let (energy, state) = measure(backend, scene)?;
+        trace.push(Sample { substep, total: energy.total(), bend: energy.bend, max_speed: state.max_speed() });
+        Ok(())
+    };
+    record(backend, 0)?;
+    let mut done = 0;
+    for k in 1..=samples {
+        let target = steps * k / samples;
+        backend.advance(target - done)?;
+        done = target;
+        record(backend, done)?;
+        progress(done);
+    }
+    let peak_speed = trace.iter().map(|s| s.max_speed).fold(0.0, f64::max);
+    Ok(Relaxation { trace, peak_speed })
+}
+
+/// Mean signed distance of each edge family from the interior mid-plane, in
+/// yarn radii (SPEC §6 "Curl").
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Curl {
+    /// Course edges (top and bottom rows).
+    pub course: f64,
+    /// Wale edges (left and right columns).
+    pub wale: f64,
+}
+
+impl Curl {
+    /// |course| + |wale|: the figure the gate thresholds.
+    pub fn total(&self) -> f64 {
+        self.course.abs() + self.wale.abs()
+    }
+}
+
+/// Fit a plane to the interior nodes, orient its normal toward the technical
+/// face (course × wale), and average the signed distance of each edge
+/// family's nodes, divided by the yarn radius. `None` when the fabric has no
+/// interior nodes or no nodes on an edge family (a strip one stitch wide).
+pub fn curl(fabric: &Fabric, positions: &[Vector3<f64>]) -> Option<Curl> {
+    let boundary = fabric.boundary();
+    let interior: Vec<_> = positions.iter().zip(boundary).filter(|(_, b)| b.is_interior()).map(|(p, _)| *p).collect();
+    if interior.len() < 3 {
+        return None;
+    }
+    let centroid = interior.iter().sum::<Vector3<f64>>() / interior.len() as f64;
+    let covariance = interior.iter().map(|p| (p - centroid) * (p - centroid).transpose()).sum::<Matrix3<f64>>();
+    let eigen = covariance.symmetric_eigen();
+    let smallest = eigen.eigenvalues.imin();
+    let mut normal: Vector3<f64> = eigen.eigenvectors.column(smallest).into_owned();
+    if normal.dot(&fabric.course().cross(&fabric.wale())) < 0.0 {
+        normal = -normal;
+    }
+    let family = |on: fn(&yarn_topology::Boundary) -> bool| {
+        let distances: Vec<f64> =
+            positions.iter().zip(boundary).filter(|(_, b)| on(b)).map(|(p, _)| (p - centroid).dot(&normal)).collect();
+        (!distances.is_empty()).then(|| distances.iter().sum::<f64>() / distances.len() as f64 / fabric.yarn_radius())
+    };
+    Some(Curl { course: family(|b| b.on_course_edge())?, wale: family(|b| b.on_wale_edge())? })
+}
+
+/// A fabric axis to pull along.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Axis {
+    /// Along a row: grip the left and right columns.
+    Course,
+    /// Up a column: grip the bottom and top rows.
+    Wale,
+}
+
+impl Axis {
+    fn grips(self) -> (Side, Side) {
+        match self {
+            Axis::Course => (Side::Left, Side::Right),
+            Axis::Wale => (Side::Bottom, Side::Top),
+        }
+    }
+
+    fn direction(self, fabric: &Fabric) -> Vector3<f64> {
+        match self {
+            Axis::Course => fabric.course(),
+            Axis::Wale => fabric.wale(),
+        }
+    }
+}
+
+/// The outcome of one stiffness probe.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Stiffness {
+    /// The axis pulled.
+    pub axis: Axis,
+    /// Engineering strain applied between the grips.
+    pub strain: f64,
+    /// |ΔF|: the change, from the unstrained hold to the strained hold, of
+    /// the total internal force on the far grip (right or top).
+    pub force: f64,
+    /// |ΣF| on the far grip in the unstrained hold: the pre-stress the
+    /// relaxed patch still carries, which the strain's force is measured
+    /// from.
+    pub baseline: f64,
+    /// force / strain.
+    pub stiffness: f64,
+    /// Largest node speed at the end of the strained hold: how close to
+    /// equilibrium the reading is.
+    pub residual_speed: f64,
+}
+
+/// Directional stiffness along `axis` (SPEC §6 "Anisotropy").
+///
+/// Grip the two edges across `axis` by pinning their nodes, stretch the
+/// relaxed patch affinely to `strain` along the axis, hold for `steps`
+/// substeps, and read the total internal force on the far grip. The same
+/// hold at zero strain gives the baseline: a free relaxation of finite
+/// length leaves some pre-stress and creep in the patch, and subtracting it
+/// makes the reading the force *caused by the strain*. At a true equilibrium
+/// the baseline is zero and this is SPEC §6's |F| / strain exactly.
+///
+/// The backend is left holding the strained state and its pins.
+///
+/// # Errors
+/// Whatever the backend reports.
+pub fn stiffness<B: Backend>(
+    backend: &mut B,
+    fabric: &Fabric,
+    relaxed: &State<f64>,
+    axis: Axis,
+    strain: f64,
+    steps: u64,
+    mut progress: impl FnMut(u64),
+) -> Result<Stiffness, BackendError> {
+    let (near, far) = axis.grips();
+    let (near_nodes, far_nodes) = (fabric.side_nodes(near), fabric.side_nodes(far));
+    let direction = axis.direction(fabric);
+    // Stretch about the near grip's mean position, so the grips move apart
+    // by `strain` times their separation.
+    let origin = near_nodes.iter().map(|&i| relaxed.positions[i as usize].dot(&direction)).sum::<f64>()
+        / near_nodes.len() as f64;
+    let mut hold = |strain: f64, offset: u64| -> Result<(Vector3<f64>, f64), BackendError> {
+        let pulled = State::<f64> {
+            positions: relaxed
+                .positions
+                .iter()
+                .map(|p| p + direction * (strain * (p.dot(&direction) - origin)))
+                .collect(),
+            velocities: vec![Vector3::zeros(); relaxed.len()],
+        };
+        let pins: Vec<Pin> = near_nodes
+            .iter()
+            .chain(&far_nodes)
+            .map(|&node| Pin { node, target: pulled.positions[node as usize] })
+            .collect();
+        backend.set_pins(&pins)?;
+        backend.write_state(&pulled.cast())?;
+        advance_in_chunks(backend, steps, |done| progress(offset + done))?;
+        let forces = backend.forces()?;
+        let on_far = far_nodes.iter().map(|&i| widen(&forces[i as usize])).sum();
+        Ok((on_far, backend.state()?.max_speed()))
+    };
+    let (unstrained, _) = hold(0.0, 0)?;
+    let (strained, residual_speed) = hold(strain, steps)?;
+    let force = (strained - unstrained).norm();
+    Ok(Stiffness { axis, strain, force, baseline: unstrained.norm(), stiffness: force / strain, residual_speed })
+}
+
+/// Advance by `steps` in a few chunks, reporting progress after each.
+fn advance_in_chunks<B: Backend>(
+    backend: &mut B,
+    steps: u64,
+    mut progress: impl FnMut(u64),
+) -> Result<(), BackendError> {
+    const CHUNKS: u64 = 20;
+    let mut done = 0;
+    for k in 1..=CHUNKS {
+        let target = steps * k / CHUNKS;
+        backend.advance(target - done)?;
+        done = target;
+        progress(done);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use yarn_topology::{Chart, Geometry};
+
+    #[test]
+    fn a_flat_patch_reads_zero_curl_and_a_rolled_one_does_not() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(6, 6).unwrap(), &Geometry::default()).unwrap();
+        let flat: Vec<_> = fabric.positions().to_vec();
+        let c = curl(&fabric, &flat).unwrap();
+        assert!(c.total() < 1e-9, "assembled patch reads {c:?}");
+        // Lift the course edges toward the face by one radius: course reads
+        // +1, and the wale edges (which share the corner stitches) less.
+        let lifted: Vec<_> = flat
+            .iter()
+            .zip(fabric.boundary())
+            .map(|(p, b)| if b.on_course_edge() { p + Vector3::z() * fabric.yarn_radius() } else { *p })
+            .collect();
+        let c = curl(&fabric, &lifted).unwrap();
+        // The fitted mid-plane tilts slightly with the loops, so the lift
+        // reads as a little less than one radius along its normal.
+        assert!((c.course - 1.0).abs() < 1e-2, "{c:?}");
+        assert!(c.wale > 0.0 && c.wale < 1.0, "{c:?}");
+    }
+
+    #[test]
+    fn strips_without_interior_have_no_curl() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(2, 8).unwrap(), &Geometry::default()).unwrap();
+        assert!(curl(&fabric, fabric.positions()).is_none());
+    }
+}

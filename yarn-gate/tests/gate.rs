@@ -1,0 +1,84 @@
+//! The gate itself, run as tests: the default patch must pass, κ = 1 must
+//! read flat, and the CLI must keep its JSON interface and exit codes.
+
+use std::process::Command;
+
+use yarn_backend_cpu::Serial;
+use yarn_gate::check::{CheckConfig, MIN_ANISOTROPY, MIN_CURL, run_check};
+use yarn_gate::metrics;
+use yarn_model::{Backend, Params};
+use yarn_topology::{Chart, Fabric, Geometry};
+
+#[test]
+fn default_patch_passes_the_gate() {
+    let report = run_check(Serial::<f64>::new(), &CheckConfig::default(), &mut |_, _, _| {}).unwrap();
+    assert_eq!((report.nodes, report.contacts), (2048, 480));
+    assert!(report.energy_final < 0.5 * report.energy_initial, "{} -> {}", report.energy_initial, report.energy_final);
+    assert!(report.max_speed_final < report.max_speed_peak);
+    assert!(report.curl_course.abs() + report.curl_wale.abs() >= MIN_CURL);
+    assert!(report.anisotropy.max(1.0 / report.anisotropy) >= MIN_ANISOTROPY, "ratio {}", report.anisotropy);
+    assert!(report.pass, "{}", report.table());
+}
+
+/// With κ = 1 the yarn wants exactly its assembled shape, so the relaxed
+/// patch must read flat; the same patch at κ = 0.55 must not.
+#[test]
+fn rest_curl_one_reads_flat() {
+    let fabric = Fabric::from_chart(&Chart::stockinette(8, 8).unwrap(), &Geometry::default()).unwrap();
+    let curl_after = |rest_curl: f64| {
+        let mut backend = Serial::<f64>::new();
+        backend.load(&fabric, &Params { rest_curl, ..Params::gate() }).unwrap();
+        backend.advance(3000).unwrap();
+        metrics::curl(&fabric, &backend.state().unwrap().positions).unwrap()
+    };
+    let flat = curl_after(1.0);
+    assert!(flat.total() < 1e-6, "κ = 1 curled: {flat:?}");
+    let curled = curl_after(0.55);
+    assert!(curled.total() > 0.02, "κ = 0.55 stayed flat: {curled:?}");
+}
+
+#[test]
+fn cli_json_has_the_documented_keys_and_exit_code_follows_pass() {
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
+        .args(["check", "--size", "5x4", "--steps", "600", "--backend", "serial-f32", "--json"])
+        .output()
+        .unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("stdout is one JSON object");
+    for key in [
+        "nodes",
+        "contacts",
+        "steps",
+        "energy_initial",
+        "energy_final",
+        "max_speed_final",
+        "curl_course",
+        "curl_wale",
+        "stiffness_course",
+        "stiffness_wale",
+        "anisotropy",
+        "pass",
+    ] {
+        assert!(json.get(key).is_some(), "missing key {key}");
+    }
+    assert_eq!(json["nodes"], 160);
+    assert_eq!(json["contacts"], 30);
+    assert_eq!(json["steps"], 600);
+    assert_eq!(output.status.success(), json["pass"].as_bool().unwrap());
+}
+
+#[test]
+fn cli_bad_input_is_a_clear_error() {
+    let run = |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_yarn-gate")).args(args).output().unwrap();
+    let out = run(&["check", "--size", "2x2"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("at least 3x3"));
+    let out = run(&["check", "--backend", "abacus"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("serial-f32"));
+    let out = run(&["check", "--size", "16by16"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("WIDTHxHEIGHT"));
+    let out = run(&["check", "--rest-curl", "1.5", "--size", "3x3"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("rest_curl"));
+}

@@ -1,0 +1,141 @@
+//! The contract every compute backend fulfils.
+
+use yarn_topology::{Fabric, Pin, TopologyError};
+
+use crate::{ParamError, Params, Real, State, V3};
+
+/// Why a backend could not do what was asked. Each variant says what to fix.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum BackendError {
+    /// The parameters did not validate.
+    #[error(transparent)]
+    Params(#[from] ParamError),
+    /// A pin or fabric part was invalid.
+    #[error(transparent)]
+    Topology(#[from] TopologyError),
+    /// An array has the wrong length for the loaded fabric.
+    #[error("{what}: expected {expected} entries for the loaded fabric, got {got}")]
+    LengthMismatch {
+        /// Which array.
+        what: &'static str,
+        /// Length the loaded fabric needs.
+        expected: usize,
+        /// Length supplied.
+        got: usize,
+    },
+    /// An operation that needs a fabric was called before [`Backend::load`].
+    #[error("no fabric is loaded; call `load` first")]
+    NotLoaded,
+}
+
+/// A compute backend: something that can hold a fabric and advance it by the
+/// substep of SPEC §4.
+///
+/// ```
+/// use yarn_model::{Backend, Params};
+/// use yarn_topology::{Chart, Fabric, Geometry};
+///
+/// fn relax<B: Backend>(backend: &mut B) -> Result<f64, Box<dyn std::error::Error>> {
+///     let fabric = Fabric::from_chart(&Chart::stockinette(4, 4)?, &Geometry::default())?;
+///     backend.load(&fabric, &Params::default())?;
+///     backend.advance(100)?;
+///     Ok(backend.state()?.max_speed())
+/// }
+/// ```
+///
+/// ## Design
+///
+/// The trait is a handful of required primitives (load, parameters, pins,
+/// contact liveness, state in and out, one force accumulation, and
+/// `advance(n)`) because those are exactly what differ between a serial
+/// loop, a thread pool and a GPU queue. Everything else (energy, metrics,
+/// probes) is computed once, above the backend, from the state it returns.
+///
+/// `advance` takes a substep count rather than being called per substep so
+/// that a GPU backend can record n substeps into one submission with no
+/// readback; reading state is a separate, explicit call for the same reason.
+/// `compute_forces` exists for conformance: the force field after one
+/// accumulation is the sharpest cross-backend check (SPEC §6).
+///
+/// Each backend computes in one precision, [`Backend::Real`]; the state
+/// crosses the boundary in that precision so that comparisons see exactly
+/// what the backend holds.
+pub trait Backend {
+    /// The scalar this backend computes in.
+    type Real: Real;
+
+    /// A short name for reports, e.g. `"serial-f32"`.
+    fn name(&self) -> String;
+
+    /// Load a fabric: state at its assembled positions with zero velocity,
+    /// its own pins, every contact alive.
+    ///
+    /// # Errors
+    /// [`BackendError::Params`] if `params` do not validate.
+    fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError>;
+
+    /// Replace the parameters.
+    ///
+    /// # Errors
+    /// [`BackendError::Params`] if they do not validate, or
+    /// [`BackendError::NotLoaded`].
+    fn set_params(&mut self, params: &Params) -> Result<(), BackendError>;
+
+    /// Replace the pins.
+    ///
+    /// # Errors
+    /// [`BackendError::Topology`] for a bad pin, or [`BackendError::NotLoaded`].
+    fn set_pins(&mut self, pins: &[Pin]) -> Result<(), BackendError>;
+
+    /// Set the liveness of every contact, one flag per contact.
+    ///
+    /// # Errors
+    /// [`BackendError::LengthMismatch`] or [`BackendError::NotLoaded`].
+    fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError>;
+
+    /// Overwrite positions and velocities.
+    ///
+    /// # Errors
+    /// [`BackendError::LengthMismatch`] or [`BackendError::NotLoaded`].
+    fn write_state(&mut self, state: &State<Self::Real>) -> Result<(), BackendError>;
+
+    /// Copy positions and velocities into `state`, resizing it.
+    ///
+    /// # Errors
+    /// [`BackendError::NotLoaded`].
+    fn read_state(&mut self, state: &mut State<Self::Real>) -> Result<(), BackendError>;
+
+    /// F = −∇U at the current positions (SPEC §4 step 1), into `forces`,
+    /// resized to the node count. The state does not change.
+    ///
+    /// # Errors
+    /// [`BackendError::NotLoaded`].
+    fn compute_forces(&mut self, forces: &mut Vec<V3<Self::Real>>) -> Result<(), BackendError>;
+
+    /// Advance by `substeps` substeps of SPEC §4.
+    ///
+    /// # Errors
+    /// [`BackendError::NotLoaded`].
+    fn advance(&mut self, substeps: u64) -> Result<(), BackendError>;
+
+    /// The current state, freshly allocated.
+    ///
+    /// # Errors
+    /// As [`Backend::read_state`].
+    fn state(&mut self) -> Result<State<Self::Real>, BackendError> {
+        let mut state = State::default();
+        self.read_state(&mut state)?;
+        Ok(state)
+    }
+
+    /// The force field at the current positions, freshly allocated.
+    ///
+    /// # Errors
+    /// As [`Backend::compute_forces`].
+    fn forces(&mut self) -> Result<Vec<V3<Self::Real>>, BackendError> {
+        let mut forces = Vec::new();
+        self.compute_forces(&mut forces)?;
+        Ok(forces)
+    }
+}

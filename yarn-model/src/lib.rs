@@ -1,0 +1,44 @@
+//! The mechanics of yarnify: what the yarn *does*.
+//!
+//! This crate owns the model parameters ([`Params`]), the energy and exact
+//! force of each term (SPEC §3, [`terms`]), the substep every backend follows
+//! (SPEC §4, [`step`]), the [`Backend`] contract, and [`Simulation`], the
+//! small driver for users who just want to run a fabric.
+//!
+//! It knows fabrics only through `yarn-topology`, and it must not know how a
+//! backend computes: CPU, rayon and GPU implementations live in their own
+//! crates and are held to [`step::substep`] by the conformance suite.
+//!
+//! ```
+//! use yarn_model::{Model, Params, State, step};
+//! use yarn_topology::{Chart, Fabric, Geometry};
+//!
+//! let fabric = Fabric::from_chart(&Chart::stockinette(4, 4)?, &Geometry::default())?;
+//! let mut model = Model::<f64>::new(&fabric, &Params::default())?;
+//! let mut state = State::at_rest(&fabric);
+//! let before = step::energy(&model, &state).total();
+//! let mut scratch = step::Scratch::default();
+//! for _ in 0..200 {
+//!     step::substep(&model, &mut state, &mut scratch);
+//! }
+//! assert!(step::energy(&model, &state).total() < before);
+//! # model.set_contacts_alive(&vec![true; fabric.contacts().len()])?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+#![forbid(unsafe_code)]
+
+mod backend;
+mod model;
+mod params;
+mod real;
+mod simulation;
+pub mod step;
+pub mod terms;
+
+pub use backend::{Backend, BackendError};
+pub use model::{Coefficients, Model, State};
+pub use params::{ParamError, Params};
+pub use real::{Real, V3, widen};
+pub use simulation::Simulation;
+pub use step::Energy;

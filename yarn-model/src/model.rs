@@ -1,0 +1,214 @@
+//! A fabric made ready to simulate in one precision: its element tables and
+//! rest values, the parameters as coefficients, the pins and contact
+//! liveness. Backends build one on load and keep it current; the state
+//! (positions and velocities) is kept apart in [`State`].
+
+use yarn_topology::{Fabric, Pin};
+
+use crate::real::{cast, widen};
+use crate::{BackendError, Params, Real, V3};
+
+/// The parameters in a backend's precision, with the derived factors the
+/// substep uses (SPEC §4).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Coefficients<T> {
+    /// Stretch stiffness k_s.
+    pub stretch: T,
+    /// Bending stiffness k_b.
+    pub bend: T,
+    /// Rest-curl fraction κ.
+    pub rest_curl: T,
+    /// Contact stiffness k_c.
+    pub contact: T,
+    /// Friction coefficient μ.
+    pub friction: T,
+    /// Node mass m.
+    pub mass: T,
+    /// Substep h.
+    pub h: T,
+    /// Gravity g.
+    pub gravity: T,
+    /// h / m: velocity change per unit force.
+    pub h_over_m: T,
+    /// 1 / (1 + βh): the implicit damping factor.
+    pub damping_factor: T,
+    /// h k_c / (m/2): normal velocity change per unit contact compression,
+    /// used by the friction filter.
+    pub friction_impulse: T,
+}
+
+impl<T: Real> Coefficients<T> {
+    /// Convert validated parameters.
+    pub fn new(p: &Params) -> Self {
+        Self {
+            stretch: T::of(p.stretch_stiffness),
+            bend: T::of(p.bend_stiffness),
+            rest_curl: T::of(p.rest_curl),
+            contact: T::of(p.contact_stiffness),
+            friction: T::of(p.friction),
+            mass: T::of(p.mass),
+            h: T::of(p.substep),
+            gravity: T::of(p.gravity),
+            h_over_m: T::of(p.substep / p.mass),
+            damping_factor: T::of(1.0 / (1.0 + p.damping * p.substep)),
+            friction_impulse: T::of(p.substep * p.contact_stiffness / (0.5 * p.mass)),
+        }
+    }
+}
+
+/// A persistent contact in a backend's precision.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactRest<T> {
+    /// First node.
+    pub a: u32,
+    /// Second node.
+    pub b: u32,
+    /// Rest separation d_c.
+    pub rest: T,
+}
+
+/// A fabric's element tables and rest values in precision `T`, with the
+/// current parameters, pins and contact liveness.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Model<T> {
+    /// Rest length of spring i, between nodes i and i + 1.
+    pub spring_rest: Vec<T>,
+    /// Rest turning angle θ0 of the joint at node i + 1 (nodes i, i+1, i+2).
+    pub rest_angle: Vec<T>,
+    /// The persistent contacts.
+    pub contacts: Vec<ContactRest<T>>,
+    /// Liveness of each contact; dead contacts exert no force or friction.
+    pub alive: Vec<bool>,
+    /// Pinned nodes and their targets.
+    pub pins: Vec<(u32, V3<T>)>,
+    /// The parameters, converted.
+    pub coeffs: Coefficients<T>,
+    params: Params,
+    nodes: usize,
+}
+
+impl<T: Real> Model<T> {
+    /// Prepare `fabric` under `params`, with the fabric's own pins and every
+    /// contact alive.
+    ///
+    /// # Errors
+    /// [`BackendError::Params`] if the parameters do not validate.
+    pub fn new(fabric: &Fabric, params: &Params) -> Result<Self, BackendError> {
+        params.validate()?;
+        let nodes = fabric.node_count();
+        // Springs are (i, i+1) and triples centre on i+1, in order, so the
+        // tables need no index columns.
+        debug_assert!(fabric.springs().iter().enumerate().all(|(i, s)| s.a as usize == i));
+        debug_assert!(fabric.triples().iter().enumerate().all(|(i, t)| t.b as usize == i + 1));
+        let mut model = Self {
+            spring_rest: fabric.springs().iter().map(|s| T::of(s.rest_length)).collect(),
+            rest_angle: fabric.triples().iter().map(|t| T::of(t.rest_angle)).collect(),
+            contacts: fabric.contacts().iter().map(|c| ContactRest { a: c.a, b: c.b, rest: T::of(c.rest) }).collect(),
+            alive: vec![true; fabric.contacts().len()],
+            pins: Vec::new(),
+            coeffs: Coefficients::new(params),
+            params: *params,
+            nodes,
+        };
+        model.set_pins(fabric.pins())?;
+        Ok(model)
+    }
+
+    /// Number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes
+    }
+
+    /// The parameters in force.
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// Replace the parameters.
+    ///
+    /// # Errors
+    /// [`BackendError::Params`] if they do not validate; the model is unchanged.
+    pub fn set_params(&mut self, params: &Params) -> Result<(), BackendError> {
+        params.validate()?;
+        self.params = *params;
+        self.coeffs = Coefficients::new(params);
+        Ok(())
+    }
+
+    /// Replace the pins.
+    ///
+    /// # Errors
+    /// [`BackendError::Topology`] for an out-of-range node or a non-finite
+    /// target; the model is unchanged.
+    pub fn set_pins(&mut self, pins: &[Pin]) -> Result<(), BackendError> {
+        yarn_topology::validate_pins(pins, self.nodes)?;
+        self.pins = pins.iter().map(|p| (p.node, cast(&p.target))).collect();
+        Ok(())
+    }
+
+    /// Set the liveness of every contact.
+    ///
+    /// # Errors
+    /// [`BackendError::LengthMismatch`] unless there is one flag per contact.
+    pub fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
+        check_len("contact liveness flags", self.contacts.len(), alive.len())?;
+        self.alive.copy_from_slice(alive);
+        Ok(())
+    }
+}
+
+/// Positions and velocities of every node: the dynamic state.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct State<T: Real> {
+    /// Node positions.
+    pub positions: Vec<V3<T>>,
+    /// Node velocities.
+    pub velocities: Vec<V3<T>>,
+}
+
+impl<T: Real> State<T> {
+    /// The fabric's assembled positions, at rest.
+    pub fn at_rest(fabric: &Fabric) -> Self {
+        Self {
+            positions: fabric.positions().iter().map(cast).collect(),
+            velocities: vec![V3::zeros(); fabric.node_count()],
+        }
+    }
+
+    /// Number of nodes.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Whether the state holds no nodes.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// The same state in another precision.
+    pub fn cast<U: Real>(&self) -> State<U> {
+        let convert = |v: &V3<T>| cast(&widen(v));
+        State {
+            positions: self.positions.iter().map(convert).collect(),
+            velocities: self.velocities.iter().map(convert).collect(),
+        }
+    }
+
+    /// The largest node speed.
+    pub fn max_speed(&self) -> f64 {
+        self.velocities.iter().map(|v| v.norm().to_f64()).fold(0.0, f64::max)
+    }
+
+    /// Check that this state fits a model of `nodes` nodes.
+    ///
+    /// # Errors
+    /// [`BackendError::LengthMismatch`] naming the wrong array.
+    pub fn check_len(&self, nodes: usize) -> Result<(), BackendError> {
+        check_len("positions", nodes, self.positions.len())?;
+        check_len("velocities", nodes, self.velocities.len())
+    }
+}
+
+fn check_len(what: &'static str, expected: usize, got: usize) -> Result<(), BackendError> {
+    if expected == got { Ok(()) } else { Err(BackendError::LengthMismatch { what, expected, got }) }
+}

@@ -1,0 +1,274 @@
+//! Model and solver parameters (SPEC §1, paper Table 1), their validation,
+//! and the derived stability bound.
+
+/// Model and solver parameters. Lengths are model units (yarn radius 0.9),
+/// time is seconds.
+///
+/// ```
+/// use yarn_model::{Params, ParamError};
+///
+/// let p = Params::default();
+/// assert!(p.substep < p.stability_bound());
+/// let too_big = Params { substep: 0.01, ..p };
+/// assert!(matches!(too_big.validate(), Err(ParamError::SubstepUnstable { .. })));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Params {
+    /// Stretch stiffness k_s of each yarn segment. Large, because real yarn
+    /// barely stretches; raising it shrinks the stable substep as
+    /// 1/sqrt(k_s) (default: 800).
+    pub stretch_stiffness: f64,
+    /// Bending stiffness k_b about the rest turning angle. Raise it for a
+    /// stiffer, springier yarn (default: 6).
+    pub bend_stiffness: f64,
+    /// Rest-curl fraction κ in [0, 1]: the yarn wants κ times its assembled
+    /// turning angle. 1 gives a dead, flat patch; lower values store more
+    /// bending and curl the free edges harder (default: 0.55).
+    pub rest_curl: f64,
+    /// Contact tether stiffness k_c holding each crossing near its rest
+    /// separation. Lower it for looser, slidier knit (default: 250).
+    pub contact_stiffness: f64,
+    /// Coulomb friction coefficient μ at compressed contacts. 0 turns the
+    /// friction pass off (default: 0.3).
+    pub friction: f64,
+    /// Viscous damping rate β in 1/s, applied implicitly. Higher settles
+    /// faster but slows all motion (default: 10).
+    pub damping: f64,
+    /// Mass m of each node. Lighter nodes need a smaller substep (default: 0.005).
+    pub mass: f64,
+    /// Substep h in seconds. Must stay below [`Params::stability_bound`];
+    /// smaller is more accurate and slower (default: 0.000666667).
+    pub substep: f64,
+    /// Gravity g along −y in model units per s². 0 for the gate; set it to
+    /// drape a pinned fabric (default: 0).
+    pub gravity: f64,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self {
+            // Paper Table 1: stiff enough that loops unbend before yarn stretches.
+            stretch_stiffness: 800.0,
+            bend_stiffness: 6.0,
+            // The paper's "lively curl of real jersey".
+            rest_curl: 0.55,
+            contact_stiffness: 250.0,
+            friction: 0.3,
+            // Table 1's value; the paper's §7 prints 6, which SPEC §1 marks as an error.
+            damping: 10.0,
+            mass: 5e-3,
+            // 1/1500 s: ωh ≈ 0.27 at the stiffest spring, well inside the bound.
+            substep: 1.0 / 1500.0,
+            // The gate measures the yarn alone (SPEC §6).
+            gravity: 0.0,
+        }
+    }
+}
+
+/// Why a [`Params`] value was refused. Each variant names the field and the
+/// valid range or bound.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ParamError {
+    /// A field is NaN or infinite.
+    #[error("parameter `{name}` is {value}; it must be a finite number")]
+    NotFinite {
+        /// Field name.
+        name: &'static str,
+        /// The rejected value.
+        value: f64,
+    },
+    /// A field is outside its valid range.
+    #[error("parameter `{name}` is {value}; it must be {valid}")]
+    OutOfRange {
+        /// Field name.
+        name: &'static str,
+        /// The rejected value.
+        value: f64,
+        /// The valid range, in words.
+        valid: &'static str,
+    },
+    /// The substep is at or above the explicit stability bound.
+    #[error(
+        "substep {substep} s is not below the stability bound 2/ω_max = {bound} s (ω_max from the stiffest element); use a smaller substep, a larger mass or softer springs"
+    )]
+    SubstepUnstable {
+        /// The rejected substep.
+        substep: f64,
+        /// The bound it must stay below.
+        bound: f64,
+    },
+}
+
+impl Params {
+    /// The paper's parameters with gravity off: what the gate runs.
+    pub fn gate() -> Self {
+        Self::default()
+    }
+
+    /// ω_max = sqrt(k_max / m) for the stiffest element, in 1/s (SPEC §1).
+    ///
+    /// k_max is the larger of the stretch and contact stiffnesses. Bending
+    /// acts as a stiffness near k_b/ℓ², which depends on segment lengths and
+    /// is far below k_s at the default gauge, so it is left out.
+    pub fn omega_max(&self) -> f64 {
+        (self.stretch_stiffness.max(self.contact_stiffness) / self.mass).sqrt()
+    }
+
+    /// The explicit stability bound h < 2/ω_max, in seconds (SPEC §1).
+    pub fn stability_bound(&self) -> f64 {
+        2.0 / self.omega_max()
+    }
+
+    /// Check every field, then the substep against [`Params::stability_bound`].
+    ///
+    /// # Errors
+    /// The first [`ParamError`] found, in field order.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        use Valid::*;
+        let fields = [
+            ("stretch_stiffness", self.stretch_stiffness, Positive),
+            ("bend_stiffness", self.bend_stiffness, NonNegative),
+            ("rest_curl", self.rest_curl, Fraction),
+            ("contact_stiffness", self.contact_stiffness, NonNegative),
+            ("friction", self.friction, NonNegative),
+            ("damping", self.damping, NonNegative),
+            ("mass", self.mass, Positive),
+            ("substep", self.substep, Positive),
+            ("gravity", self.gravity, Any),
+        ];
+        for (name, value, valid) in fields {
+            if !value.is_finite() {
+                return Err(ParamError::NotFinite { name, value });
+            }
+            if !valid.contains(value) {
+                return Err(ParamError::OutOfRange { name, value, valid: valid.describe() });
+            }
+        }
+        let bound = self.stability_bound();
+        if self.substep >= bound {
+            return Err(ParamError::SubstepUnstable { substep: self.substep, bound });
+        }
+        Ok(())
+    }
+}
+
+/// The valid range of one parameter.
+#[derive(Clone, Copy)]
+enum Valid {
+    Positive,
+    NonNegative,
+    Fraction,
+    Any,
+}
+
+impl Valid {
+    fn contains(self, value: f64) -> bool {
+        match self {
+            Valid::Positive => value > 0.0,
+            Valid::NonNegative => value >= 0.0,
+            Valid::Fraction => (0.0..=1.0).contains(&value),
+            Valid::Any => true,
+        }
+    }
+
+    fn describe(self) -> &'static str {
+        match self {
+            Valid::Positive => "greater than 0",
+            Valid::NonNegative => "0 or greater",
+            Valid::Fraction => "between 0 and 1",
+            Valid::Any => "any finite number",
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The "(default: X)" in each field's doc must match `Default`: the docs
+    /// are what users read, so they must not drift.
+    #[test]
+    fn documented_defaults_match_default() {
+        let source = include_str!("params.rs");
+        let defaults = Params::default();
+        let actual = [
+            ("stretch_stiffness", defaults.stretch_stiffness),
+            ("bend_stiffness", defaults.bend_stiffness),
+            ("rest_curl", defaults.rest_curl),
+            ("contact_stiffness", defaults.contact_stiffness),
+            ("friction", defaults.friction),
+            ("damping", defaults.damping),
+            ("mass", defaults.mass),
+            ("substep", defaults.substep),
+            ("gravity", defaults.gravity),
+        ];
+        let mut doc = String::new();
+        let mut checked = 0;
+        for line in source.lines().map(str::trim) {
+            if let Some(text) = line.strip_prefix("///") {
+                doc.push_str(text);
+                continue;
+            }
+            if let Some(field) = line.strip_prefix("pub ").and_then(|l| l.split(':').next()) {
+                if let Some(&(_, value)) = actual.iter().find(|(name, _)| *name == field) {
+                    let documented: f64 = doc
+                        .split("(default: ")
+                        .nth(1)
+                        .and_then(|rest| rest.split(')').next())
+                        .unwrap_or_else(|| panic!("`{field}` has no (default: X) in its doc"))
+                        .parse()
+                        .unwrap();
+                    let tolerance = 1e-6 * value.abs().max(1e-300);
+                    assert!(
+                        (documented - value).abs() <= tolerance,
+                        "`{field}`: doc says {documented}, Default is {value}"
+                    );
+                    checked += 1;
+                }
+            }
+            doc.clear();
+        }
+        assert_eq!(checked, actual.len(), "every field's documented default was checked");
+    }
+
+    #[test]
+    fn defaults_are_valid_and_bound_matches_paper() {
+        let p = Params::default();
+        p.validate().unwrap();
+        // Paper §7: ω ≈ 400 1/s for k_s = 800, m = 5e-3, so 2/ω = 5e-3 s.
+        assert!((p.omega_max() - 400.0).abs() < 1e-9);
+        assert!((p.stability_bound() - 5e-3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn validation_names_field_and_bound() {
+        let p = Params::default();
+        assert!(matches!(Params { mass: f64::NAN, ..p }.validate(), Err(ParamError::NotFinite { name: "mass", .. })));
+        assert!(matches!(
+            Params { stretch_stiffness: 0.0, ..p }.validate(),
+            Err(ParamError::OutOfRange { name: "stretch_stiffness", .. })
+        ));
+        assert!(matches!(
+            Params { friction: -0.1, ..p }.validate(),
+            Err(ParamError::OutOfRange { name: "friction", .. })
+        ));
+        assert!(matches!(
+            Params { rest_curl: 1.5, ..p }.validate(),
+            Err(ParamError::OutOfRange { name: "rest_curl", .. })
+        ));
+        assert!(matches!(
+            Params { gravity: f64::INFINITY, ..p }.validate(),
+            Err(ParamError::NotFinite { name: "gravity", .. })
+        ));
+        match (Params { substep: 0.006, ..p }).validate() {
+            Err(ParamError::SubstepUnstable { substep, bound }) => {
+                assert_eq!(substep, 0.006);
+                assert!((bound - 5e-3).abs() < 1e-12);
+            }
+            other => panic!("expected SubstepUnstable, got {other:?}"),
+        }
+        // Zero friction, damping and bending are legitimate scenes.
+        Params { friction: 0.0, damping: 0.0, bend_stiffness: 0.0, ..p }.validate().unwrap();
+    }
+}

@@ -1,0 +1,129 @@
+//! The one error type of this crate: every bad chart or user part names the
+//! offending index or value and what would be valid.
+
+/// Why a chart or a set of user parts could not become a [`crate::Fabric`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum TopologyError {
+    /// A chart needs at least one stitch in each direction.
+    #[error("chart is {width}x{height}: both sides must be at least 1 stitch")]
+    EmptyChart {
+        /// Requested width in stitches.
+        width: usize,
+        /// Requested height in stitches.
+        height: usize,
+    },
+    /// The chart's node count would not fit the index type used by backends.
+    #[error(
+        "chart {width}x{height} needs more than {max_nodes} nodes; use a smaller chart (at most {max_nodes} / 8 stitches)"
+    )]
+    TooLarge {
+        /// Requested width in stitches.
+        width: usize,
+        /// Requested height in stitches.
+        height: usize,
+        /// The most nodes a fabric may hold.
+        max_nodes: usize,
+    },
+    /// The stitch list given to [`crate::Chart::new`] has the wrong length.
+    #[error("chart {width}x{height} needs {expected} stitches, got {got}")]
+    ChartShape {
+        /// Chart width.
+        width: usize,
+        /// Chart height.
+        height: usize,
+        /// `width * height`.
+        expected: usize,
+        /// Length of the list supplied.
+        got: usize,
+    },
+    /// A geometry parameter is not finite or not positive.
+    #[error("geometry field `{name}` is {value}; it must be finite and positive")]
+    BadGeometry {
+        /// Field name in [`crate::Geometry`].
+        name: &'static str,
+        /// The rejected value.
+        value: f64,
+    },
+    /// User parts with no nodes at all.
+    #[error("a fabric needs at least one node")]
+    NoNodes,
+    /// More nodes than backends can index.
+    #[error("{nodes} nodes given; a fabric holds at most {max_nodes}")]
+    TooManyNodes {
+        /// Nodes supplied.
+        nodes: usize,
+        /// The most nodes a fabric may hold.
+        max_nodes: usize,
+    },
+    /// A node coordinate is NaN or infinite.
+    #[error("node {node} has non-finite coordinate {value} on axis {axis}")]
+    NonFinitePosition {
+        /// Offending node.
+        node: usize,
+        /// 0, 1 or 2 for x, y, z.
+        axis: usize,
+        /// The value found.
+        value: f64,
+    },
+    /// Two consecutive nodes coincide, so the segment has no direction.
+    #[error("segment {segment} (nodes {segment} and {}) has zero length; move one of them", segment + 1)]
+    ZeroLengthSegment {
+        /// Index of the first node of the segment.
+        segment: usize,
+    },
+    /// A contact refers to a node that does not exist.
+    #[error("contact {contact} refers to node {node}, but only nodes 0..{nodes} exist")]
+    ContactOutOfRange {
+        /// Offending contact.
+        contact: usize,
+        /// The out-of-range node index.
+        node: usize,
+        /// Number of nodes.
+        nodes: usize,
+    },
+    /// A contact joins a node to itself.
+    #[error("contact {contact} joins node {node} to itself; a contact needs two different nodes")]
+    SelfContact {
+        /// Offending contact.
+        contact: usize,
+        /// The node named twice.
+        node: usize,
+    },
+    /// A pin refers to a node that does not exist.
+    #[error("pin {pin} refers to node {node}, but only nodes 0..{nodes} exist")]
+    PinOutOfRange {
+        /// Offending pin.
+        pin: usize,
+        /// The out-of-range node index.
+        node: usize,
+        /// Number of nodes.
+        nodes: usize,
+    },
+    /// A pin target is NaN or infinite.
+    #[error("pin {pin} has non-finite target coordinate {value} on axis {axis}")]
+    NonFinitePin {
+        /// Offending pin.
+        pin: usize,
+        /// 0, 1 or 2 for x, y, z.
+        axis: usize,
+        /// The value found.
+        value: f64,
+    },
+    /// The boundary list does not have one entry per node.
+    #[error("boundary list has {got} entries for {nodes} nodes")]
+    BoundaryLength {
+        /// Entries supplied.
+        got: usize,
+        /// Number of nodes.
+        nodes: usize,
+    },
+    /// A course or wale direction is zero or non-finite.
+    #[error("the {name} direction {value:?} is not a finite non-zero vector")]
+    BadDirection {
+        /// `"course"` or `"wale"`.
+        name: &'static str,
+        /// The rejected vector.
+        value: [f64; 3],
+    },
+}

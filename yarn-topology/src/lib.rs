@@ -1,0 +1,36 @@
+//! Stitch charts to yarn: the topology layer of yarnify.
+//!
+//! This crate owns *what is connected to what* and the assembled rest
+//! geometry: a [`Chart`] of stitch kinds becomes a [`Fabric`], one open
+//! polyline of yarn nodes with its stretch springs, bending triples,
+//! persistent contacts, boundary edge families and the course and wale
+//! directions (SPEC §2). A fabric can also be built from user parts with
+//! [`Fabric::from_parts`], which validates every index and coordinate.
+//!
+//! It must not know about forces, parameters or backends: those live in
+//! `yarn-model` and below.
+//!
+//! ```
+//! use yarn_topology::{Chart, Fabric, Geometry};
+//!
+//! let chart = Chart::stockinette(16, 16)?;
+//! let fabric = Fabric::from_chart(&chart, &Geometry::default())?;
+//! assert_eq!(fabric.node_count(), 2048);
+//! assert_eq!(fabric.contacts().len(), 480);
+//! # Ok::<(), yarn_topology::TopologyError>(())
+//! ```
+
+#![forbid(unsafe_code)]
+
+mod chart;
+mod error;
+mod fabric;
+mod stockinette;
+
+pub use chart::{Chart, StitchKind};
+pub use error::TopologyError;
+pub use fabric::{Boundary, Contact, Fabric, FabricParts, Pin, Side, Spring, Triple, validate_pins};
+pub use stockinette::{Geometry, SEG};
+
+/// A 3-vector of model-unit coordinates.
+pub type Vec3 = nalgebra::Vector3<f64>;

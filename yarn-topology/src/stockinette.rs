@@ -1,0 +1,269 @@
+//! The stockinette generator (SPEC §2): one loop of `SEG` nodes per stitch,
+//! rows laid serpentine, and two contacts where each head is clasped by the
+//! feet of the loop above.
+//!
+//! The arch profile is a function of a loop phase p in [0, SEG): p = 0 is the
+//! low point between loops, p = SEG/2 the head. Rows laid right to left use
+//! p = SEG − s for the s-th node, which is the serpentine offset φ_ρ of the
+//! paper's eq. (3): the yarn turns at the row end without a zero-length
+//! segment, and every head stays centred in its column.
+
+use std::f64::consts::PI;
+
+use crate::fabric::{Boundary, FabricParts, Side};
+use crate::{Chart, Fabric, StitchKind, TopologyError, Vec3};
+
+/// Nodes per loop.
+pub const SEG: usize = 8;
+
+/// Phase of the head node within a loop.
+const HEAD: usize = SEG / 2;
+/// Phases of the two feet, one node in from each end of the loop: the
+/// lowest nodes that belong to this loop in both row directions.
+const FEET: [usize; 2] = [1, SEG - 1];
+
+/// The assembled loop geometry of a stockinette cell (SPEC §1, paper Table 1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Geometry {
+    /// Stitch width w_s along the course (default: 5.0).
+    pub stitch_width: f64,
+    /// Stitch height h_s up the wale (default: 4.2).
+    pub stitch_height: f64,
+    /// Loop arch height h_loop; must exceed the stitch height so each head
+    /// reaches into the row above (default: 4.8).
+    pub loop_height: f64,
+    /// Head offset toward the technical face (+z); the feet go back by the
+    /// same profile (default: 1.6).
+    pub head_offset: f64,
+    /// Yarn radius r; contacts rest no closer than 2r (default: 0.9).
+    pub yarn_radius: f64,
+}
+
+impl Default for Geometry {
+    /// The paper's Table 1 gauge.
+    fn default() -> Self {
+        Self { stitch_width: 5.0, stitch_height: 4.2, loop_height: 4.8, head_offset: 1.6, yarn_radius: 0.9 }
+    }
+}
+
+impl Geometry {
+    fn validate(&self) -> Result<(), TopologyError> {
+        for (name, value) in [
+            ("stitch_width", self.stitch_width),
+            ("stitch_height", self.stitch_height),
+            ("loop_height", self.loop_height),
+            ("head_offset", self.head_offset),
+            ("yarn_radius", self.yarn_radius),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(TopologyError::BadGeometry { name, value });
+            }
+        }
+        Ok(())
+    }
+
+    /// Position of loop phase `p` in the cell whose lower-left corner is at
+    /// (x0, y0): the arch rises as sin² to the head, and the out-of-plane
+    /// profile is a raised cosine, forward at the head and back at the feet.
+    fn node(&self, x0: f64, y0: f64, p: usize) -> Vec3 {
+        let phase = PI * p as f64 / SEG as f64;
+        let rise = phase.sin().powi(2);
+        Vec3::new(
+            x0 + self.stitch_width * p as f64 / SEG as f64,
+            y0 + self.loop_height * rise,
+            -self.head_offset * (2.0 * phase).cos(),
+        )
+    }
+}
+
+impl Fabric {
+    /// Generate the fabric of a stitch chart with the given loop geometry.
+    ///
+    /// Node `SEG * k + s` is the s-th node of the k-th loop along the yarn;
+    /// row ρ holds loops `ρW .. (ρ+1)W`, left to right for even ρ and right
+    /// to left for odd ρ.
+    ///
+    /// # Errors
+    /// [`TopologyError::BadGeometry`] for a non-positive or non-finite
+    /// geometry field.
+    pub fn from_chart(chart: &Chart, geometry: &Geometry) -> Result<Self, TopologyError> {
+        geometry.validate()?;
+        let (w, h) = (chart.width(), chart.height());
+        let mut positions = Vec::with_capacity(w * h * SEG);
+        let mut boundary = Vec::with_capacity(w * h * SEG);
+        for row in 0..h {
+            for k in 0..w {
+                let column = column_of(row, k, w);
+                // Only knit exists today; purl will mirror the z profile here.
+                let StitchKind::Knit = chart.get(column, row).unwrap_or_default();
+                let x0 = column as f64 * geometry.stitch_width;
+                let y0 = row as f64 * geometry.stitch_height;
+                for s in 0..SEG {
+                    positions.push(geometry.node(x0, y0, phase_of(row, s)));
+                }
+                let mut sides = Boundary::INTERIOR;
+                for (on, side) in [
+                    (row == 0, Side::Bottom),
+                    (row + 1 == h, Side::Top),
+                    (column == 0, Side::Left),
+                    (column + 1 == w, Side::Right),
+                ] {
+                    if on {
+                        sides = sides.with(side);
+                    }
+                }
+                boundary.extend([sides; SEG]);
+            }
+        }
+        let mut contacts = Vec::with_capacity(2 * w * h.saturating_sub(1));
+        for row in 0..h.saturating_sub(1) {
+            for column in 0..w {
+                let head = node_index(w, row, column, HEAD);
+                for foot in FEET {
+                    contacts.push([head as u32, node_index(w, row + 1, column, foot) as u32]);
+                }
+            }
+        }
+        let parts = FabricParts {
+            positions,
+            contacts,
+            boundary,
+            yarn_radius: Some(geometry.yarn_radius),
+            ..FabricParts::default()
+        };
+        Fabric::assembled(parts, (w, h))
+    }
+
+    /// Index of the node at loop phase `p` of the stitch at (`column`, `row`)
+    /// in a generated fabric, or `None` outside the grid or for `p >= SEG`.
+    /// Phase 0 is the low point at the cell's left end on rows laid left to
+    /// right, and at its right end on rows laid right to left.
+    pub fn stitch_node(&self, column: usize, row: usize, p: usize) -> Option<usize> {
+        let (w, h) = self.grid()?;
+        (column < w && row < h && p < SEG).then(|| node_index(w, row, column, p))
+    }
+}
+
+/// Column of the k-th loop laid in `row`.
+fn column_of(row: usize, k: usize, width: usize) -> usize {
+    if row % 2 == 0 { k } else { width - 1 - k }
+}
+
+/// Loop phase of the s-th node laid in `row`.
+fn phase_of(row: usize, s: usize) -> usize {
+    if row % 2 == 0 { s } else { SEG - s }
+}
+
+/// Node index of phase `p` (1..SEG-1 on odd rows, 0..SEG-1 on even rows; the
+/// phases FEET and HEAD exist on both) in the stitch at (`column`, `row`).
+fn node_index(width: usize, row: usize, column: usize, p: usize) -> usize {
+    let k = column_of(row, column, width);
+    let s = phase_of(row, p) % SEG;
+    (row * width + k) * SEG + s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn patch(w: usize, h: usize) -> Fabric {
+        Fabric::from_chart(&Chart::stockinette(w, h).unwrap(), &Geometry::default()).unwrap()
+    }
+
+    #[test]
+    fn counts_match_spec_for_16x16() {
+        let f = patch(16, 16);
+        assert_eq!(f.node_count(), 2048);
+        assert_eq!(f.springs().len(), 2047);
+        assert_eq!(f.triples().len(), 2046);
+        assert_eq!(f.contacts().len(), 480);
+    }
+
+    #[test]
+    fn counts_follow_formulas_for_thin_and_tiny_charts() {
+        for (w, h) in [(1, 1), (1, 5), (7, 1), (3, 4), (5, 2)] {
+            let f = patch(w, h);
+            let n = 8 * w * h;
+            assert_eq!(f.node_count(), n, "{w}x{h}");
+            assert_eq!(f.springs().len(), n - 1, "{w}x{h}");
+            assert_eq!(f.triples().len(), n - 2, "{w}x{h}");
+            assert_eq!(f.contacts().len(), 2 * w * (h - 1), "{w}x{h}");
+        }
+    }
+
+    #[test]
+    fn each_head_reaches_into_the_row_above_between_its_feet() {
+        let f = patch(6, 5);
+        let x = f.positions();
+        for row in 0..4 {
+            let next_row_low = (0..6).map(|c| x[f.stitch_node(c, row + 1, 1).unwrap()].y).fold(f64::INFINITY, f64::min);
+            for c in 0..6 {
+                let head = x[f.stitch_node(c, row, HEAD).unwrap()];
+                let feet = FEET.map(|p| x[f.stitch_node(c, row + 1, p).unwrap()]);
+                assert!(head.y > (row + 1) as f64 * 4.2, "head of ({c},{row}) stays below the row above");
+                assert!(head.y > next_row_low - 0.5, "head of ({c},{row}) does not reach the feet above");
+                assert!(feet[0].x < head.x && head.x < feet[1].x, "head of ({c},{row}) not between its clasping feet");
+                assert!(head.z > 0.0 && feet.iter().all(|f| f.z < 0.0), "head must be in front, feet behind");
+            }
+        }
+        // Contacts pair exactly these nodes.
+        for contact in f.contacts() {
+            let (a, b) = (x[contact.a as usize], x[contact.b as usize]);
+            assert!(b.y > a.y - 1.0 && (b - a).norm() < 4.0, "contact {contact:?} spans too far");
+        }
+    }
+
+    #[test]
+    fn no_segment_has_zero_length() {
+        for (w, h) in [(1, 1), (2, 3), (16, 16)] {
+            let f = patch(w, h);
+            let shortest = f.springs().iter().map(|s| s.rest_length).fold(f64::INFINITY, f64::min);
+            assert!(shortest > 0.5, "{w}x{h}: shortest segment {shortest}");
+        }
+    }
+
+    #[test]
+    fn serpentine_order_is_one_strand() {
+        let (w, h) = (5, 4);
+        let f = patch(w, h);
+        let x = f.positions();
+        // Consecutive nodes are near neighbours everywhere, including row turns.
+        for s in f.springs() {
+            assert!(s.rest_length < 4.0, "segment {} jumps {}", s.a, s.rest_length);
+        }
+        // Rows alternate direction, and the yarn turns at alternate sides.
+        for row in 0..h {
+            let first = x[row * w * SEG];
+            let last = x[(row + 1) * w * SEG - 1];
+            if row % 2 == 0 {
+                assert!(last.x > first.x + 4.0 * (w as f64 - 1.0), "row {row} not left to right");
+            } else {
+                assert!(last.x < first.x - 4.0 * (w as f64 - 1.0), "row {row} not right to left");
+            }
+        }
+    }
+
+    #[test]
+    fn boundary_families_cover_the_edges() {
+        let f = patch(4, 3);
+        let count = |side| f.side_nodes(side).len();
+        assert_eq!(count(Side::Bottom), 4 * SEG);
+        assert_eq!(count(Side::Top), 4 * SEG);
+        assert_eq!(count(Side::Left), 3 * SEG);
+        assert_eq!(count(Side::Right), 3 * SEG);
+        let interior = f.boundary().iter().filter(|b| b.is_interior()).count();
+        assert_eq!(interior, 2 * SEG);
+        assert_eq!(f.course(), Vec3::x());
+        assert_eq!(f.wale(), Vec3::y());
+    }
+
+    #[test]
+    fn bad_charts_and_geometry_are_typed_errors() {
+        assert_eq!(Chart::stockinette(0, 3), Err(TopologyError::EmptyChart { width: 0, height: 3 }));
+        assert!(matches!(Chart::stockinette(usize::MAX, 2), Err(TopologyError::TooLarge { .. })));
+        assert!(matches!(Chart::new(2, 2, vec![StitchKind::Knit; 3]), Err(TopologyError::ChartShape { got: 3, .. })));
+        let geometry = Geometry { loop_height: f64::NAN, ..Geometry::default() };
+        let err = Fabric::from_chart(&Chart::stockinette(2, 2).unwrap(), &geometry).unwrap_err();
+        assert!(matches!(err, TopologyError::BadGeometry { name: "loop_height", .. }));
+    }
+}
