@@ -4,6 +4,9 @@
 //! [`yarn_model::step::substep`] as written, in `f32` (the reference for the
 //! other `f32` backends) or `f64` (the ground truth for accuracy figures).
 //!
+//! [`Rayon`] computes the same function in parallel passes with a
+//! deterministic per-node gather (see its module for the pass layout).
+//!
 //! This crate owns how the CPU executes the model, never what the model is:
 //! formulas stay in `yarn-model`.
 //!
@@ -20,6 +23,10 @@
 //! ```
 
 #![forbid(unsafe_code)]
+
+mod rayon_backend;
+
+pub use rayon_backend::Rayon;
 
 use yarn_model::{Backend, BackendError, Model, Params, Real, State, V3, step};
 use yarn_topology::{Fabric, Pin};

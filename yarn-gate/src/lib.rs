@@ -1,13 +1,15 @@
 //! yarnify's behavioural gate.
 //!
 //! This crate owns the metrics of SPEC §6 ([`metrics`]), the `check` gate
-//! built from them ([`check`]), and the `yarn-gate` command-line tool. It
+//! built from them ([`check`]), the cross-backend conformance suite
+//! ([`conformance`]), and the `yarn-gate` command-line tool. It
 //! drives backends only through the [`yarn_model::Backend`] trait, so every
 //! backend is measured by the same code.
 
 #![forbid(unsafe_code)]
 
 pub mod check;
+pub mod conformance;
 pub mod metrics;
 
 use yarn_model::BackendError;

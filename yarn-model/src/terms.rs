@@ -53,7 +53,7 @@ fn joint<T: Real>(a: &V3<T>, b: &V3<T>, c: &V3<T>) -> Option<Joint<T>> {
     }
     let (u, v) = (d0 / l0, d1 / l1);
     let s = u.dot(&v).clamp(-T::one(), T::one());
-    Some(Joint { u, v, l0, l1, s, theta: s.acos() })
+    Some(Joint { u, v, l0, l1, s, theta: s.turning_angle() })
 }
 
 /// Energy ½ k_b (θ − target)² of the bending joint (a, b, c), where

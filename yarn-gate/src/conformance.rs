@@ -1,0 +1,265 @@
+//! The cross-backend conformance suite: every backend against the serial
+//! `f32` reference, on random scenes.
+//!
+//! Each check is one generic function over [`Backend`], written once; the
+//! test file instantiates it per backend with one macro line. A scene is a
+//! random fabric (generated or built from user parts) with a perturbed
+//! state, random pins, dead contacts and parameters; the `proptest`
+//! strategies live in [`strategy`].
+
+use yarn_backend_cpu::Serial;
+use yarn_model::{Backend, BackendError, Model, Params, State, V3, step, widen};
+use yarn_topology::{Fabric, Pin};
+
+/// Force agreement after one accumulation, relative to the largest
+/// reference force: both sides evaluate the same f32 formulas, and only the
+/// order of each node's sum differs (a few ulps of the largest term).
+pub const FORCE_F32: f64 = 1e-5;
+/// Position and velocity agreement after one substep, relative to the
+/// largest velocity times h plus one f32 ulp of the coordinates.
+pub const SUBSTEP_F32: f64 = 1e-5;
+/// Position agreement after [`TRAJECTORY_STEPS`] substeps, in yarn radii.
+/// Rounding differences grow along the trajectory, and the friction filter
+/// and contact compression test are discontinuous, so one flipped contact
+/// may add a small kick; 1e-2 r is still far below anything visible.
+pub const TRAJECTORY_F32: f64 = 1e-2;
+/// Relative energy agreement after the trajectory.
+pub const ENERGY_F32: f64 = 1e-3;
+/// Substeps in the trajectory check (SPEC §6 uses 120).
+pub const TRAJECTORY_STEPS: u64 = 120;
+
+/// A scene to run: fabric, parameters, starting state, pins and liveness.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// The fabric.
+    pub fabric: Fabric,
+    /// Parameters (valid).
+    pub params: Params,
+    /// Starting state in f32.
+    pub state: State<f32>,
+    /// Pins.
+    pub pins: Vec<Pin>,
+    /// One liveness flag per contact.
+    pub alive: Vec<bool>,
+}
+
+impl Scene {
+    /// Load this scene into `backend`.
+    ///
+    /// # Errors
+    /// Whatever the backend reports.
+    pub fn load<B: Backend<Real = f32>>(&self, backend: &mut B) -> Result<(), BackendError> {
+        backend.load(&self.fabric, &self.params)?;
+        backend.set_pins(&self.pins)?;
+        backend.set_contacts_alive(&self.alive)?;
+        backend.write_state(&self.state)
+    }
+
+    fn reference(&self) -> Serial<f32> {
+        let mut serial = Serial::new();
+        self.load(&mut serial).expect("scenes are valid");
+        serial
+    }
+}
+
+fn max_diff(a: &[V3<f32>], b: &[V3<f32>]) -> f64 {
+    a.iter().zip(b).map(|(p, q)| (widen(p) - widen(q)).norm()).fold(0.0, f64::max)
+}
+
+fn max_norm(a: &[V3<f32>]) -> f64 {
+    a.iter().map(|p| widen(p).norm()).fold(0.0, f64::max)
+}
+
+/// The force field after one accumulation matches the reference within
+/// [`FORCE_F32`]. Returns the error relative to the largest force.
+///
+/// # Panics
+/// When the check fails: this is a test helper.
+pub fn forces_match_reference<B: Backend<Real = f32>>(make: impl Fn() -> B, scene: &Scene) -> f64 {
+    let mut backend = make();
+    scene.load(&mut backend).expect("load");
+    let got = backend.forces().expect("forces");
+    let want = scene.reference().forces().expect("reference forces");
+    assert_eq!(got.len(), want.len());
+    let err = max_diff(&got, &want) / max_norm(&want).max(1.0);
+    assert!(err <= FORCE_F32, "{}: force error {err:e} > {FORCE_F32:e}", backend.name());
+    err
+}
+
+/// One substep matches the reference within [`SUBSTEP_F32`].
+///
+/// # Panics
+/// When the check fails.
+pub fn substep_matches_reference<B: Backend<Real = f32>>(make: impl Fn() -> B, scene: &Scene) -> f64 {
+    let mut backend = make();
+    scene.load(&mut backend).expect("load");
+    let mut reference = scene.reference();
+    backend.advance(1).expect("advance");
+    reference.advance(1).expect("reference advance");
+    let (got, want) = (backend.state().expect("state"), reference.state().expect("state"));
+    let scale = 1.0 + max_norm(&want.velocities);
+    let err = max_diff(&got.velocities, &want.velocities).max(max_diff(&got.positions, &want.positions)) / scale;
+    assert!(err <= SUBSTEP_F32, "{}: substep error {err:e} > {SUBSTEP_F32:e}", backend.name());
+    err
+}
+
+/// A [`TRAJECTORY_STEPS`]-substep trajectory stays within
+/// [`TRAJECTORY_F32`] yarn radii of the reference, and its energy within
+/// [`ENERGY_F32`].
+///
+/// # Panics
+/// When the check fails.
+pub fn trajectory_matches_reference<B: Backend<Real = f32>>(make: impl Fn() -> B, scene: &Scene) -> (f64, f64) {
+    let mut backend = make();
+    scene.load(&mut backend).expect("load");
+    let mut reference = scene.reference();
+    backend.advance(TRAJECTORY_STEPS).expect("advance");
+    reference.advance(TRAJECTORY_STEPS).expect("reference advance");
+    let (got, want) = (backend.state().expect("state"), reference.state().expect("state"));
+    let err = max_diff(&got.positions, &want.positions) / scene.fabric.yarn_radius();
+    assert!(err <= TRAJECTORY_F32, "{}: trajectory error {err:e} r > {TRAJECTORY_F32:e} r", backend.name());
+
+    let mut model = Model::<f64>::new(&scene.fabric, &scene.params).expect("valid scene");
+    model.set_pins(&scene.pins).expect("valid pins");
+    model.set_contacts_alive(&scene.alive).expect("valid flags");
+    let (e_got, e_want) = (step::energy(&model, &got.cast()).total(), step::energy(&model, &want.cast()).total());
+    let energy_err = (e_got - e_want).abs() / e_want.abs().max(1.0);
+    assert!(energy_err <= ENERGY_F32, "{}: energy {e_got} vs reference {e_want}", backend.name());
+    (err, energy_err)
+}
+
+/// Random scenes for `proptest`.
+pub mod strategy {
+    use proptest::prelude::*;
+    use yarn_model::{Params, State, V3};
+    use yarn_topology::{Chart, Fabric, FabricParts, Geometry, Pin, Vec3};
+
+    use super::Scene;
+
+    /// Parameters drawn across their valid ranges, with the substep kept
+    /// at most a quarter of the single-element stability bound: a chain of
+    /// springs is stable only below half of it, and contacts stiffen nodes
+    /// further.
+    pub fn params() -> impl Strategy<Value = Params> {
+        (
+            100.0..2000.0f64,
+            0.0..20.0f64,
+            0.0..=1.0f64,
+            0.0..600.0f64,
+            prop_oneof![Just(0.0), 0.0..1.0f64],
+            0.0..30.0f64,
+            2e-3..2e-2f64,
+            0.05..0.25f64,
+            prop_oneof![Just(0.0), -20.0..20.0f64],
+        )
+            .prop_map(|(ks, kb, kappa, kc, mu, beta, m, fraction, g)| {
+                let p = Params {
+                    stretch_stiffness: ks,
+                    bend_stiffness: kb,
+                    rest_curl: kappa,
+                    contact_stiffness: kc,
+                    friction: mu,
+                    damping: beta,
+                    mass: m,
+                    substep: 1.0,
+                    gravity: g,
+                };
+                Params { substep: fraction * p.stability_bound(), ..p }
+            })
+    }
+
+    /// A fabric: a stockinette chart from 1×1 to 6×5 (thin strips
+    /// included), or a random user-built polyline with random contacts.
+    pub fn fabric() -> impl Strategy<Value = Fabric> {
+        let chart = (1usize..=6, 1usize..=5)
+            .prop_map(|(w, h)| Chart::stockinette(w, h).and_then(|c| Fabric::from_chart(&c, &Geometry::default())))
+            .prop_map(|fabric| fabric.expect("charts of 1..=6 by 1..=5 are valid"));
+        let parts = (3usize..40)
+            .prop_flat_map(|n| {
+                (
+                    proptest::collection::vec((0.4..1.5f64, -1.0..1.0f64, -1.0..1.0f64), n),
+                    proptest::collection::vec((0..n as u32, 0..n as u32), 0..n),
+                )
+            })
+            .prop_map(|(steps, pairs)| {
+                let mut at = Vec3::zeros();
+                let positions = steps
+                    .iter()
+                    .map(|&(dx, dy, dz)| {
+                        at += Vec3::new(dx, dy, dz);
+                        at
+                    })
+                    .collect();
+                let contacts = pairs.into_iter().filter(|(a, b)| a != b).map(|(a, b)| [a, b]).collect();
+                Fabric::from_parts(FabricParts { positions, contacts, ..FabricParts::default() })
+                    .expect("steps of at least 0.4 never repeat a node; self-contacts are filtered")
+            });
+        prop_oneof![3 => chart, 1 => parts]
+    }
+
+    /// A full scene: fabric, parameters, a perturbed moving state, a few
+    /// pins and some dead contacts.
+    pub fn scene() -> impl Strategy<Value = Scene> {
+        (fabric(), params(), any::<u64>(), 0.0..0.5f64, 0.0..5.0f64, 0.0..0.1f64, 0.0..0.4f64).prop_map(
+            |(fabric, params, seed, jiggle, speed, pin_fraction, dead_fraction)| {
+                let mut rng = seed | 1;
+                let mut next = move || {
+                    rng ^= rng << 13;
+                    rng ^= rng >> 7;
+                    rng ^= rng << 17;
+                    (rng >> 11) as f64 / (1u64 << 53) as f64
+                };
+                let mut random_vec = |scale: f64| V3::new(next() - 0.5, next() - 0.5, next() - 0.5) * (2.0 * scale);
+                let mut state = State::<f64>::at_rest(&fabric);
+                for (x, v) in state.positions.iter_mut().zip(&mut state.velocities) {
+                    *x += random_vec(jiggle);
+                    *v = random_vec(speed);
+                }
+                let pins = (0..fabric.node_count() as u32)
+                    .filter(|_| next() < pin_fraction)
+                    .map(|node| Pin { node, target: fabric.positions()[node as usize] })
+                    .collect();
+                let alive = (0..fabric.contacts().len()).map(|_| next() >= dead_fraction).collect();
+                Scene { state: state.cast(), fabric, params, pins, alive }
+            },
+        )
+    }
+}
+
+/// Drift of `Serial<f32>` from `Serial<f64>` over a free relaxation of the
+/// gate patch.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Drift {
+    /// Substeps run.
+    pub steps: u64,
+    /// Largest node position difference, in yarn radii.
+    pub max_position: f64,
+    /// Root-mean-square node position difference, in yarn radii.
+    pub rms_position: f64,
+    /// Relative difference of total energy.
+    pub energy: f64,
+}
+
+/// Run the free relaxation of `fabric` on `Serial<f32>` and `Serial<f64>`
+/// and measure how far apart they end.
+///
+/// # Errors
+/// Whatever the backends report.
+pub fn f32_drift(fabric: &Fabric, params: &Params, steps: u64) -> Result<Drift, BackendError> {
+    let (mut single, mut double) = (Serial::<f32>::new(), Serial::<f64>::new());
+    single.load(fabric, params)?;
+    double.load(fabric, params)?;
+    single.advance(steps)?;
+    double.advance(steps)?;
+    let (a, b) = (single.state()?.cast::<f64>(), double.state()?);
+    let r = fabric.yarn_radius();
+    let diffs: Vec<f64> = a.positions.iter().zip(&b.positions).map(|(p, q)| (p - q).norm() / r).collect();
+    let model = Model::<f64>::new(fabric, params)?;
+    let (ea, eb) = (step::energy(&model, &a).total(), step::energy(&model, &b).total());
+    Ok(Drift {
+        steps,
+        max_position: diffs.iter().copied().fold(0.0, f64::max),
+        rms_position: (diffs.iter().map(|d| d * d).sum::<f64>() / diffs.len() as f64).sqrt(),
+        energy: (ea - eb).abs() / eb.abs().max(1.0),
+    })
+}
