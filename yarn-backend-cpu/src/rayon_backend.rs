@@ -67,11 +67,6 @@ impl Rayon {
         Ok(Self { pool: Some(rayon::ThreadPoolBuilder::new().num_threads(threads).build()?), loaded: None })
     }
 
-    /// The number of threads the passes run on.
-    pub fn threads(&self) -> usize {
-        self.pool.as_ref().map_or_else(rayon::current_num_threads, rayon::ThreadPool::current_num_threads)
-    }
-
     fn loaded(&mut self) -> Result<&mut Loaded, BackendError> {
         self.loaded.as_mut().ok_or(BackendError::NotLoaded)
     }
@@ -251,6 +246,10 @@ impl Backend for Rayon {
 
     fn name(&self) -> String {
         format!("rayon-f32x{}", self.threads())
+    }
+
+    fn threads(&self) -> usize {
+        self.pool.as_ref().map_or_else(rayon::current_num_threads, rayon::ThreadPool::current_num_threads)
     }
 
     fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError> {

@@ -18,13 +18,20 @@ pub const FORCE_F32: f64 = 1e-5;
 /// Position and velocity agreement after one substep, relative to the
 /// largest velocity times h plus one f32 ulp of the coordinates.
 pub const SUBSTEP_F32: f64 = 1e-5;
-/// Position agreement after [`TRAJECTORY_STEPS`] substeps, in yarn radii.
-/// Rounding differences grow along the trajectory, and the friction filter
-/// and contact compression test are discontinuous, so one flipped contact
-/// may add a small kick; 1e-2 r is still far below anything visible.
+/// Position agreement after [`TRAJECTORY_STEPS`] substeps, in yarn radii,
+/// for scenes that are not themselves sensitive to rounding.
 pub const TRAJECTORY_F32: f64 = 1e-2;
-/// Relative energy agreement after the trajectory.
-pub const ENERGY_F32: f64 = 1e-3;
+/// For scenes that are: how many times the reference's own divergence under
+/// a one-ulp nudge of its starting positions a backend may drift. Some
+/// scenes amplify rounding by orders of magnitude in 120 substeps: a joint
+/// pulled straight while its rest angle is not zero buckles in a direction
+/// that rounding picks, and the friction filter and compression test are
+/// discontinuous. There, agreeing to the reference's own sensitivity is the
+/// most any other summation order can promise.
+pub const TRAJECTORY_SENSITIVITY: f64 = 10.0;
+/// Relative energy agreement after the trajectory, for scenes that are not
+/// sensitive to rounding (see [`TRAJECTORY_SENSITIVITY`]).
+pub const ENERGY_F32: f64 = 5e-3;
 /// Substeps in the trajectory check (SPEC §6 uses 120).
 pub const TRAJECTORY_STEPS: u64 = 120;
 
@@ -116,16 +123,41 @@ pub fn trajectory_matches_reference<B: Backend<Real = f32>>(make: impl Fn() -> B
     backend.advance(TRAJECTORY_STEPS).expect("advance");
     reference.advance(TRAJECTORY_STEPS).expect("reference advance");
     let (got, want) = (backend.state().expect("state"), reference.state().expect("state"));
-    let err = max_diff(&got.positions, &want.positions) / scene.fabric.yarn_radius();
-    assert!(err <= TRAJECTORY_F32, "{}: trajectory error {err:e} r > {TRAJECTORY_F32:e} r", backend.name());
+    let r = scene.fabric.yarn_radius();
+    let err = max_diff(&got.positions, &want.positions) / r;
+    let nudged = [1.0 + f32::EPSILON, 1.0 - f32::EPSILON].map(|factor| nudged_reference_end(scene, factor));
+    let sensitivity = nudged.iter().map(|end| max_diff(&end.positions, &want.positions)).fold(0.0, f64::max) / r;
+    let tolerance = TRAJECTORY_F32.max(TRAJECTORY_SENSITIVITY * sensitivity);
+    assert!(
+        err <= tolerance,
+        "{}: trajectory error {err:e} r > {tolerance:e} r (reference's own one-ulp sensitivity {sensitivity:e} r)",
+        backend.name()
+    );
 
     let mut model = Model::<f64>::new(&scene.fabric, &scene.params).expect("valid scene");
     model.set_pins(&scene.pins).expect("valid pins");
     model.set_contacts_alive(&scene.alive).expect("valid flags");
-    let (e_got, e_want) = (step::energy(&model, &got.cast()).total(), step::energy(&model, &want.cast()).total());
-    let energy_err = (e_got - e_want).abs() / e_want.abs().max(1.0);
-    assert!(energy_err <= ENERGY_F32, "{}: energy {e_got} vs reference {e_want}", backend.name());
+    let energy = |state: &State<f32>| step::energy(&model, &state.cast()).total();
+    let (e_got, e_want) = (energy(&got), energy(&want));
+    let scale = e_want.abs().max(1.0);
+    let energy_err = (e_got - e_want).abs() / scale;
+    let energy_sensitivity = nudged.iter().map(|end| (energy(end) - e_want).abs()).fold(0.0, f64::max) / scale;
+    let energy_tolerance = ENERGY_F32.max(TRAJECTORY_SENSITIVITY * energy_sensitivity);
+    assert!(energy_err <= energy_tolerance, "{}: energy {e_got} vs reference {e_want}", backend.name());
     (err, energy_err)
+}
+
+/// The reference trajectory's end when every starting coordinate is scaled
+/// by `factor`, one ulp from 1: how far it lands from the un-nudged end is
+/// the scene's own sensitivity to rounding.
+fn nudged_reference_end(scene: &Scene, factor: f32) -> State<f32> {
+    let mut nudged = scene.clone();
+    for x in &mut nudged.state.positions {
+        *x *= factor;
+    }
+    let mut serial = nudged.reference();
+    serial.advance(TRAJECTORY_STEPS).expect("reference advance");
+    serial.state().expect("state")
 }
 
 /// Random scenes for `proptest`.

@@ -8,6 +8,7 @@
 
 #![forbid(unsafe_code)]
 
+pub mod bench;
 pub mod check;
 pub mod conformance;
 pub mod metrics;
@@ -32,6 +33,14 @@ pub enum GateError {
         width: usize,
         /// Patch height.
         height: usize,
+    },
+    /// The thread pool for a parallel backend could not start.
+    #[error("could not start {threads} worker threads: {reason}")]
+    ThreadPool {
+        /// Threads asked for.
+        threads: usize,
+        /// The system's reason.
+        reason: String,
     },
     /// The backend name is not known.
     #[error("unknown backend `{name}`; choose one of: {known}")]

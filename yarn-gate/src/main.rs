@@ -4,8 +4,9 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use yarn_backend_cpu::Serial;
+use yarn_backend_cpu::{Rayon, Serial};
 use yarn_gate::GateError;
+use yarn_gate::bench::{BenchConfig, bench, table};
 use yarn_gate::check::{CheckConfig, CheckReport, run_check};
 use yarn_model::Params;
 
@@ -22,6 +23,28 @@ enum Command {
     /// Relax a free stockinette patch and check dissipation, edge curl and
     /// course/wale anisotropy (exit code 0 only if all pass).
     Check(CheckArgs),
+    /// Measure the cost per node per substep of each backend over square
+    /// patches (median of repeated runs after a warm-up).
+    Bench(BenchArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct BenchArgs {
+    /// Backends to measure, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "serial-f32,serial-f64,rayon")]
+    backend: Vec<String>,
+    /// Patch sides in stitches, comma-separated (8 = 8x8 = 512 nodes).
+    #[arg(long, value_delimiter = ',', default_value = "8,16,32,64")]
+    sizes: Vec<usize>,
+    /// Threads for the rayon backend; 0 uses one per core.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Timed runs per row; the median is reported.
+    #[arg(long, default_value_t = 7)]
+    repeats: usize,
+    /// Print a JSON array of rows instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -32,7 +55,7 @@ struct CheckArgs {
     /// Substeps of free relaxation; each stiffness probe holds as long.
     #[arg(long, default_value_t = 12_000)]
     steps: u64,
-    /// Backend: serial (f64, the ground truth) or serial-f32.
+    /// Backend: serial (f64, the ground truth), serial-f32 or rayon (f32).
     #[arg(long, default_value = "serial")]
     backend: String,
     /// Rest-curl fraction κ; 1 gives a patch that should read flat.
@@ -49,35 +72,94 @@ fn parse_size(text: &str) -> Result<(usize, usize), String> {
     Ok((w.trim().parse().map_err(|_| err())?, h.trim().parse().map_err(|_| err())?))
 }
 
-const BACKENDS: &str = "serial, serial-f64, serial-f32";
+const BACKENDS: &str = "serial, serial-f64, serial-f32, rayon";
+
+/// Run `$body` with `$backend` bound to the backend named `$name`.
+macro_rules! with_backend {
+    ($name:expr, $threads:expr, $backend:ident => $body:expr) => {
+        match $name {
+            "serial" | "serial-f64" => {
+                let $backend = Serial::<f64>::new();
+                $body
+            }
+            "serial-f32" => {
+                let $backend = Serial::<f32>::new();
+                $body
+            }
+            "rayon" => {
+                let $backend = rayon($threads)?;
+                $body
+            }
+            other => Err(GateError::UnknownBackend { name: other.into(), known: BACKENDS.into() }),
+        }
+    };
+}
+
+fn rayon(threads: usize) -> Result<Rayon, GateError> {
+    if threads == 0 {
+        return Ok(Rayon::new());
+    }
+    Rayon::with_threads(threads).map_err(|e| GateError::ThreadPool { threads, reason: e.to_string() })
+}
+
+fn progress_bar(len: u64, template: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    bar.set_style(ProgressStyle::with_template(template).expect("static template").progress_chars("=> "));
+    bar
+}
 
 fn check(args: &CheckArgs) -> Result<CheckReport, GateError> {
     let params = Params { rest_curl: args.rest_curl.unwrap_or(Params::gate().rest_curl), ..Params::gate() };
     let config =
         CheckConfig { width: args.size.0, height: args.size.1, steps: args.steps, pull_steps: args.steps, params };
-    let bar = ProgressBar::new(args.steps);
-    bar.set_style(
-        ProgressStyle::with_template("{msg:>12} [{bar:40}] {pos}/{len} substeps ({eta})")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
+    let bar = progress_bar(args.steps, "{msg:>12} [{bar:40}] {pos}/{len} substeps ({eta})");
     let mut progress = |phase: &'static str, done: u64, total: u64| {
         bar.set_message(phase);
         bar.set_length(total);
         bar.set_position(done);
     };
-    let report = match args.backend.as_str() {
-        "serial" | "serial-f64" => run_check(Serial::<f64>::new(), &config, &mut progress),
-        "serial-f32" => run_check(Serial::<f32>::new(), &config, &mut progress),
-        other => Err(GateError::UnknownBackend { name: other.into(), known: BACKENDS.into() }),
-    };
+    let report = with_backend!(args.backend.as_str(), 0, backend => run_check(backend, &config, &mut progress));
     bar.finish_and_clear();
     report
+}
+
+fn run_bench(args: &BenchArgs) -> Result<Vec<yarn_gate::bench::BenchRow>, GateError> {
+    let config = BenchConfig { sides: args.sizes.clone(), repeats: args.repeats.max(1), ..BenchConfig::default() };
+    let mut rows = Vec::new();
+    for name in &args.backend {
+        let bar = progress_bar(0, "{msg:>12} [{bar:40}] {pos}/{len} timed runs");
+        bar.set_message(name.clone());
+        let mut progress = |done, total| {
+            bar.set_length(total);
+            bar.set_position(done);
+        };
+        let measured = with_backend!(name.as_str(), args.threads, backend => {
+            let mut backend = backend;
+            bench(&mut backend, &config, &mut progress)
+        });
+        bar.finish_and_clear();
+        rows.extend(measured?);
+    }
+    Ok(rows)
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Bench(args) => match run_bench(&args) {
+            Ok(rows) => {
+                if args.json {
+                    println!("{}", serde_json::to_string_pretty(&rows).expect("rows serialise"));
+                } else {
+                    print!("{}", table(&rows));
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::from(2)
+            }
+        },
         Command::Check(args) => match check(&args) {
             Ok(report) => {
                 if args.json {

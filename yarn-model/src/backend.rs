@@ -68,6 +68,11 @@ pub trait Backend {
     /// A short name for reports, e.g. `"serial-f32"`.
     fn name(&self) -> String;
 
+    /// CPU threads the backend computes on, for reports.
+    fn threads(&self) -> usize {
+        1
+    }
+
     /// Load a fabric: state at its assembled positions with zero velocity,
     /// its own pins, every contact alive.
     ///

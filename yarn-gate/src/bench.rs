@@ -1,0 +1,124 @@
+//! `yarn-gate bench`: cost per node per substep of each backend over square
+//! patches, as the median of repeated timed runs after a warm-up.
+
+use std::time::Instant;
+
+use serde::Serialize;
+use yarn_model::{Backend, BackendError, Params};
+use yarn_topology::{Chart, Fabric, Geometry};
+
+use crate::GateError;
+
+/// How the benchmark runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchConfig {
+    /// Patch sides in stitches; each patch is side × side.
+    pub sides: Vec<usize>,
+    /// Timed runs per row; the median is reported.
+    pub repeats: usize,
+    /// Node-substeps per timed run; the substep count follows from the
+    /// patch size, so every run does about the same work.
+    pub work_per_run: u64,
+}
+
+impl Default for BenchConfig {
+    /// 8×8 to 64×64 stitches (512 to 32,768 nodes), 7 runs of about 20
+    /// million node-substeps each.
+    fn default() -> Self {
+        Self { sides: vec![8, 16, 32, 64], repeats: 7, work_per_run: 20_000_000 }
+    }
+}
+
+/// One measured row.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BenchRow {
+    /// Backend name.
+    pub backend: String,
+    /// Threads the backend ran on.
+    pub threads: usize,
+    /// Patch size, `WxH` stitches.
+    pub size: String,
+    /// Node count.
+    pub nodes: usize,
+    /// Contact count.
+    pub contacts: usize,
+    /// Substeps per timed run.
+    pub substeps: u64,
+    /// Median nanoseconds per node per substep.
+    pub ns_per_node_substep: f64,
+    /// Fastest and slowest run, same unit: the spread of the repeats.
+    pub ns_min: f64,
+    /// See `ns_min`.
+    pub ns_max: f64,
+    /// Median substeps per second.
+    pub substeps_per_s: f64,
+}
+
+/// Benchmark one backend over every size in `config`. `progress(done,
+/// total)` counts timed runs.
+///
+/// # Errors
+/// [`GateError`] for a bad size or a backend failure.
+pub fn bench<B: Backend>(
+    backend: &mut B,
+    config: &BenchConfig,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Vec<BenchRow>, GateError> {
+    let total = (config.sides.len() * config.repeats) as u64;
+    let mut rows = Vec::with_capacity(config.sides.len());
+    for (k, &side) in config.sides.iter().enumerate() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(side, side)?, &Geometry::default())?;
+        let nodes = fabric.node_count();
+        backend.load(&fabric, &Params::default())?;
+        let substeps = (config.work_per_run / nodes as u64).max(10);
+        // Warm-up: caches, the thread pool, and the release transient.
+        backend.advance(substeps / 4 + 1)?;
+        let mut times = (0..config.repeats)
+            .map(|r| {
+                let start = Instant::now();
+                backend.advance(substeps)?;
+                let elapsed = start.elapsed().as_secs_f64();
+                progress((k * config.repeats + r + 1) as u64, total);
+                Ok(elapsed)
+            })
+            .collect::<Result<Vec<f64>, BackendError>>()?;
+        times.sort_by(f64::total_cmp);
+        let median = times[times.len() / 2];
+        let per = |t: f64| t * 1e9 / (substeps as f64 * nodes as f64);
+        rows.push(BenchRow {
+            backend: backend.name(),
+            threads: backend.threads(),
+            size: format!("{side}x{side}"),
+            nodes,
+            contacts: fabric.contacts().len(),
+            substeps,
+            ns_per_node_substep: per(median),
+            ns_min: per(times[0]),
+            ns_max: per(times[times.len() - 1]),
+            substeps_per_s: substeps as f64 / median,
+        });
+    }
+    Ok(rows)
+}
+
+/// The rows as a table.
+pub fn table(rows: &[BenchRow]) -> String {
+    let mut out = format!(
+        "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14} {:>16} {:>14}\n",
+        "backend", "threads", "size", "nodes", "contacts", "ns/node-step", "(min..max)", "substeps/s"
+    );
+    for r in rows {
+        out += &format!(
+            "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14.2} {:>16} {:>14.0}\n",
+            r.backend,
+            r.threads,
+            r.size,
+            r.nodes,
+            r.contacts,
+            r.ns_per_node_substep,
+            format!("({:.2}..{:.2})", r.ns_min, r.ns_max),
+            r.substeps_per_s
+        );
+    }
+    out
+}
