@@ -82,3 +82,24 @@ fn cli_bad_input_is_a_clear_error() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("rest_curl"));
 }
+
+#[test]
+fn cli_bench_json_has_a_row_per_backend_and_size() {
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
+        .args(["bench", "--sizes", "2,3", "--repeats", "1", "--threads", "2", "--json"])
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let rows: Vec<serde_json::Value> = serde_json::from_slice(&output.stdout).expect("stdout is a JSON array");
+    assert_eq!(rows.len(), 6, "3 backends x 2 sizes");
+    for row in &rows {
+        for key in ["backend", "nodes", "contacts", "ns_per_node_substep", "substeps_per_s", "threads"] {
+            assert!(row.get(key).is_some(), "missing {key} in {row}");
+        }
+        assert!(row["ns_per_node_substep"].as_f64().unwrap() > 0.0);
+    }
+    assert_eq!(rows[0]["nodes"], 32);
+    assert_eq!(rows[1]["contacts"], 12);
+    assert_eq!(rows[5]["backend"], "rayon-f32x2");
+    assert_eq!(rows[5]["threads"], 2);
+}
