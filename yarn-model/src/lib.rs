@@ -14,7 +14,7 @@
 //! use yarn_topology::{Chart, Fabric, Geometry};
 //!
 //! let fabric = Fabric::from_chart(&Chart::stockinette(4, 4)?, &Geometry::default())?;
-//! let mut model = Model::<f64>::new(&fabric, &Params::default())?;
+//! let model = Model::<f64>::new(&fabric, &Params::default())?;
 //! let mut state = State::at_rest(&fabric);
 //! let before = step::energy(&model, &state).total();
 //! let mut scratch = step::Scratch::default();
@@ -22,7 +22,6 @@
 //!     step::substep(&model, &mut state, &mut scratch);
 //! }
 //! assert!(step::energy(&model, &state).total() < before);
-//! # model.set_contacts_alive(&vec![true; fabric.contacts().len()])?;
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
