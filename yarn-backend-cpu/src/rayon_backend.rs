@@ -109,7 +109,7 @@ impl Loaded {
         })
     }
 
-    /// Passes 1–3, then the gather of pass 4 into `out(node, force)`.
+    /// Passes 1–3: segment, joint and contact forces into their own slots.
     fn forces(&mut self) {
         let Self { model, state, segments, joints, contact_force, .. } = self;
         let c = model.coeffs;
