@@ -13,13 +13,13 @@
 //! 6. *nodes*: each node gathers its friction corrections and moves.
 //!
 //! Every pass writes only its own element's slot, so the result does not
-//! depend on the thread count. Passes 1, 2 and 4 are the same arithmetic
-//! as [`yarn_model::terms`], so the backend agrees with `Serial<f32>` to
-//! float rounding (the order of the per-node sums differs).
+//! depend on the thread count. The element passes call the kernels of
+//! [`yarn_model::terms`], so the backend agrees with `Serial<f32>` to float
+//! rounding (only the order of the per-node sums differs).
 
 use rayon::prelude::*;
-use yarn_model::terms::{MIN_SIN_THETA, gravity_force, spring_force};
-use yarn_model::{Backend, BackendError, Model, Params, Real, State, V3, step};
+use yarn_model::terms::{bend_end_forces, gravity_force, spring_force};
+use yarn_model::{Backend, BackendError, Model, Params, State, V3, step};
 use yarn_topology::{Fabric, Pin};
 
 type V = V3<f32>;
@@ -128,7 +128,8 @@ impl Loaded {
             for (j, joint) in out.iter_mut().enumerate() {
                 let i = chunk * CHUNK + j;
                 let ((u, _, l0), (v, _, l1)) = (segments[i], segments[i + 1]);
-                *joint = bend(u, v, l0, l1, c.rest_curl * model.rest_angle[i], c.bend);
+                *joint = bend_end_forces(&u, &v, l0, l1, c.rest_curl * model.rest_angle[i], c.bend)
+                    .unwrap_or((V::zeros(), V::zeros()));
             }
         });
         contact_force.par_chunks_mut(CHUNK).enumerate().for_each(|(chunk, out)| {
@@ -177,8 +178,8 @@ impl Loaded {
         self.forces();
         let c = self.model.coeffs;
         let gravity = gravity_force(c.mass, c.gravity);
-        // Pass 4: gather and damp. The new velocities go into a separate
-        // buffer so the gather reads only this substep's element forces.
+        // Pass 4: gather and damp. The velocities are taken out of `self`
+        // so the gather can borrow the rest of it while chunks write them.
         let mut velocities = std::mem::take(&mut self.state.velocities);
         velocities.par_chunks_mut(CHUNK).enumerate().for_each(|(chunk, out)| {
             for (j, v) in out.iter_mut().enumerate() {
@@ -225,20 +226,6 @@ impl Loaded {
             self.state.velocities[node as usize] = V::zeros();
         }
     }
-}
-
-/// Bending forces on the first and last node of a joint with unit tangents
-/// `u`, `v` and segment lengths `l0`, `l1`: [`yarn_model::terms::bend_forces`]
-/// from cached tangents.
-#[inline]
-fn bend(u: V, v: V, l0: f32, l1: f32, target: f32, k: f32) -> (V, V) {
-    let s = u.dot(&v).clamp(-1.0, 1.0);
-    let sin_theta = (1.0 - s * s).sqrt();
-    if !(sin_theta >= MIN_SIN_THETA as f32 && l0 > 0.0 && l1 > 0.0) {
-        return (V::zeros(), V::zeros());
-    }
-    let coeff = k * (s.turning_angle() - target) / sin_theta;
-    ((v - u * s) * (-coeff / l0), (u - v * s) * (coeff / l1))
 }
 
 impl Backend for Rayon {

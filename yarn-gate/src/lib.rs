@@ -51,9 +51,3 @@ pub enum GateError {
         known: String,
     },
 }
-
-impl From<yarn_model::ParamError> for GateError {
-    fn from(e: yarn_model::ParamError) -> Self {
-        GateError::Backend(e.into())
-    }
-}
