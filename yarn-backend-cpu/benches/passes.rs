@@ -1,6 +1,7 @@
 //! Criterion benches of the hot paths, so a regression shows up as a diff:
-//! the serial force accumulation and substep, and the rayon substep, on the
-//! 16x16 gate patch and a 64x64 patch.
+//! the force accumulation and substep of `Serial`, the `Rayon` substep, and
+//! the element-by-element `Reference` accumulation they are checked
+//! against, on the 16x16 gate patch and a 64x64 patch.
 
 #![allow(missing_docs, reason = "criterion's macros generate undocumented items")]
 
@@ -22,12 +23,15 @@ fn passes(c: &mut Criterion) {
         let model = Model::<f32>::new(&fabric, &Params::default()).expect("valid params");
         let state = State::<f32>::at_rest(&fabric);
         let mut forces = Vec::new();
-        group.bench_function(BenchmarkId::new("serial-f32 accumulate_forces", side), |b| {
+        group.bench_function(BenchmarkId::new("reference-f32 accumulate_forces", side), |b| {
             b.iter(|| step::accumulate_forces(&model, &state.positions, &mut forces));
         });
 
         let mut serial = Serial::<f32>::new();
         serial.load(&fabric, &Params::default()).expect("load");
+        group.bench_function(BenchmarkId::new("serial-f32 forces", side), |b| {
+            b.iter(|| serial.compute_forces(&mut forces).expect("forces"));
+        });
         group.bench_function(BenchmarkId::new("serial-f32 substep", side), |b| {
             b.iter(|| serial.advance(1).expect("advance"));
         });

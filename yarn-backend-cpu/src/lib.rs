@@ -1,11 +1,14 @@
 //! CPU backends for yarnify.
 //!
-//! [`Serial`] is the reference implementation of SPEC §4: it runs
-//! [`yarn_model::step::substep`] as written, in `f32` (the reference for the
-//! other `f32` backends) or `f64` (the ground truth for accuracy figures).
-//!
-//! [`Rayon`] computes the same function in parallel passes with a
-//! deterministic per-node gather (see its module for the pass layout).
+//! - [`Serial`]: SPEC §4 on one thread, in `f32` (the reference for the
+//!   other `f32` backends) or `f64` (the ground truth for accuracy
+//!   figures). Its passes run over the state stored by component, in blocks
+//!   whose loops the compiler vectorises.
+//! - [`Rayon`]: the same passes with each pass's blocks spread over a rayon
+//!   thread pool, in `f32`.
+//! - [`Reference`]: [`yarn_model::step::substep`] as written, element by
+//!   element: the plainest statement of the model, against which the
+//!   conformance suite holds the fast backends.
 //!
 //! This crate owns how the CPU executes the model, never what the model is:
 //! formulas stay in `yarn-model`.
@@ -24,16 +27,84 @@
 
 #![forbid(unsafe_code)]
 
+mod kernel;
 mod rayon_backend;
 
 pub use rayon_backend::Rayon;
 
+use kernel::{Exec, Kernel};
 use yarn_model::{Backend, BackendError, Model, Params, Real, State, V3, step};
 use yarn_topology::{Fabric, Pin};
 
-/// The serial reference backend, in precision `T` (`f32` or `f64`).
-#[derive(Debug, Clone, Default)]
+/// The single-threaded backend, in precision `T` (`f32` or `f64`).
+#[derive(Debug, Default)]
 pub struct Serial<T: Real> {
+    kernel: Option<Kernel<T>>,
+}
+
+impl<T: Real> Serial<T> {
+    /// An empty backend; call [`Backend::load`] before use.
+    pub fn new() -> Self {
+        Self { kernel: None }
+    }
+
+    fn kernel(&mut self) -> Result<&mut Kernel<T>, BackendError> {
+        self.kernel.as_mut().ok_or(BackendError::NotLoaded)
+    }
+}
+
+impl<T: Real> Backend for Serial<T> {
+    type Real = T;
+
+    fn name(&self) -> String {
+        format!("serial-{}", T::NAME)
+    }
+
+    fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError> {
+        self.kernel = Some(Kernel::new(fabric, params, Exec::Sequential, 1)?);
+        Ok(())
+    }
+
+    fn set_params(&mut self, params: &Params) -> Result<(), BackendError> {
+        self.kernel()?.set_params(params)
+    }
+
+    fn set_pins(&mut self, pins: &[Pin]) -> Result<(), BackendError> {
+        self.kernel()?.set_pins(pins)
+    }
+
+    fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
+        self.kernel()?.set_contacts_alive(alive)
+    }
+
+    fn write_state(&mut self, state: &State<T>) -> Result<(), BackendError> {
+        self.kernel()?.write_state(state)
+    }
+
+    fn read_state(&mut self, state: &mut State<T>) -> Result<(), BackendError> {
+        self.kernel()?.read_state(state);
+        Ok(())
+    }
+
+    fn compute_forces(&mut self, forces: &mut Vec<V3<T>>) -> Result<(), BackendError> {
+        self.kernel()?.compute_forces(forces);
+        Ok(())
+    }
+
+    fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
+        let kernel = self.kernel()?;
+        for _ in 0..substeps {
+            kernel.substep();
+        }
+        Ok(())
+    }
+}
+
+/// [`yarn_model::step::substep`] as a backend, in precision `T`: every
+/// element in order, one node vector at a time. Slow and plain; it is what
+/// the other backends are checked against.
+#[derive(Debug, Clone, Default)]
+pub struct Reference<T: Real> {
     loaded: Option<Loaded<T>>,
 }
 
@@ -44,7 +115,7 @@ struct Loaded<T: Real> {
     scratch: step::Scratch<T>,
 }
 
-impl<T: Real> Serial<T> {
+impl<T: Real> Reference<T> {
     /// An empty backend; call [`Backend::load`] before use.
     pub fn new() -> Self {
         Self { loaded: None }
@@ -55,11 +126,11 @@ impl<T: Real> Serial<T> {
     }
 }
 
-impl<T: Real> Backend for Serial<T> {
+impl<T: Real> Backend for Reference<T> {
     type Real = T;
 
     fn name(&self) -> String {
-        format!("serial-{}", T::NAME)
+        format!("reference-{}", T::NAME)
     }
 
     fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError> {
@@ -141,6 +212,31 @@ mod tests {
         ));
         assert!(serial.set_params(&Params { damping: -1.0, ..Params::default() }).is_err());
         assert_eq!(serial.state().unwrap(), before, "refused input changed the state");
+    }
+
+    /// The conformance suite holds every f32 backend to `Reference<f32>`;
+    /// this holds the f64 kernel, the ground truth of accuracy figures, to
+    /// `Reference<f64>`, across block edges (1,152 nodes) and with friction.
+    #[test]
+    fn serial_f64_matches_reference_f64() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(12, 12).unwrap(), &Geometry::default()).unwrap();
+        let params = Params { gravity: 3.0, ..Params::default() };
+        let (mut fast, mut plain) = (Serial::<f64>::new(), Reference::<f64>::new());
+        fast.load(&fabric, &params).unwrap();
+        plain.load(&fabric, &params).unwrap();
+        let alive: Vec<bool> = (0..fabric.contacts().len()).map(|k| k % 7 != 0).collect();
+        fast.set_contacts_alive(&alive).unwrap();
+        plain.set_contacts_alive(&alive).unwrap();
+        let (f, g) = (fast.forces().unwrap(), plain.forces().unwrap());
+        let scale = g.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        let worst = f.iter().zip(&g).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        assert!(scale > 1.0 && worst < 1e-12 * scale, "forces differ by {worst:e} of {scale}");
+        fast.advance(300).unwrap();
+        plain.advance(300).unwrap();
+        let (a, b) = (fast.state().unwrap(), plain.state().unwrap());
+        let moved = b.positions.iter().zip(fabric.positions()).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+        let worst = a.positions.iter().zip(&b.positions).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+        assert!(moved > 1e-2 && worst < 1e-9, "moved {moved}, differ by {worst:e}");
     }
 
     #[test]

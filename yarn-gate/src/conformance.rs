@@ -1,5 +1,6 @@
-//! The cross-backend conformance suite: every backend against the serial
-//! `f32` reference, on random scenes.
+//! The cross-backend conformance suite: every backend against
+//! [`Reference<f32>`] (the model's own element-by-element substep), on
+//! random scenes.
 //!
 //! Each check is one generic function over [`Backend`], written once; the
 //! test file instantiates it per backend with one macro line. A scene is a
@@ -7,7 +8,7 @@
 //! state, random pins, dead contacts and parameters; the `proptest`
 //! strategies live in [`strategy`].
 
-use yarn_backend_cpu::Serial;
+use yarn_backend_cpu::{Reference, Serial};
 use yarn_model::{Backend, BackendError, Model, Params, State, V3, step, widen};
 use yarn_topology::{Fabric, Pin};
 
@@ -62,10 +63,10 @@ impl Scene {
         backend.write_state(&self.state)
     }
 
-    fn reference(&self) -> Serial<f32> {
-        let mut serial = Serial::new();
-        self.load(&mut serial).expect("scenes are valid");
-        serial
+    fn reference(&self) -> Reference<f32> {
+        let mut reference = Reference::new();
+        self.load(&mut reference).expect("scenes are valid");
+        reference
     }
 }
 
@@ -206,6 +207,11 @@ pub mod strategy {
         let chart = (1usize..=6, 1usize..=5)
             .prop_map(|(w, h)| Chart::stockinette(w, h).and_then(|c| Fabric::from_chart(&c, &Geometry::default())))
             .prop_map(|fabric| fabric.expect("charts of 1..=6 by 1..=5 are valid"));
+        // Long strips of 480 to 1,280 nodes, so backends that cut the yarn
+        // into blocks are tested across block edges and with ragged ends.
+        let strip = (60usize..=80, 1usize..=2)
+            .prop_map(|(w, h)| Chart::stockinette(w, h).and_then(|c| Fabric::from_chart(&c, &Geometry::default())))
+            .prop_map(|fabric| fabric.expect("charts of 60..=80 by 1..=2 are valid"));
         let parts = (3usize..40)
             .prop_flat_map(|n| {
                 (
@@ -226,7 +232,7 @@ pub mod strategy {
                 Fabric::from_parts(FabricParts { positions, contacts, ..FabricParts::default() })
                     .expect("steps of at least 0.4 never repeat a node; self-contacts are filtered")
             });
-        prop_oneof![3 => chart, 1 => parts]
+        prop_oneof![3 => chart, 1 => strip, 1 => parts]
     }
 
     /// A full scene: fabric, parameters, a perturbed moving state, a few

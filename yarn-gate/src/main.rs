@@ -4,7 +4,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use yarn_backend_cpu::{Rayon, Serial};
+use yarn_backend_cpu::{Rayon, Reference, Serial};
 use yarn_gate::GateError;
 use yarn_gate::bench::{BenchConfig, bench, table};
 use yarn_gate::check::{CheckConfig, CheckReport, run_check};
@@ -55,7 +55,8 @@ struct CheckArgs {
     /// Substeps of free relaxation; each stiffness probe holds as long.
     #[arg(long, default_value_t = 12_000)]
     steps: u64,
-    /// Backend: serial (f64, the ground truth), serial-f32 or rayon (f32).
+    /// Backend: serial (f64, the ground truth), serial-f32, rayon (f32), or
+    /// reference-f32 / reference-f64 (the element-by-element substep).
     #[arg(long, default_value = "serial")]
     backend: String,
     /// Rest-curl fraction κ; 1 gives a patch that should read flat.
@@ -72,7 +73,7 @@ fn parse_size(text: &str) -> Result<(usize, usize), String> {
     Ok((w.trim().parse().map_err(|_| err())?, h.trim().parse().map_err(|_| err())?))
 }
 
-const BACKENDS: &str = "serial, serial-f64, serial-f32, rayon";
+const BACKENDS: &str = "serial, serial-f64, serial-f32, rayon, reference-f32, reference-f64";
 
 /// Run `$body` with `$backend` bound to the backend named `$name`.
 macro_rules! with_backend {
@@ -88,6 +89,14 @@ macro_rules! with_backend {
             }
             "rayon" => {
                 let $backend = rayon($threads)?;
+                $body
+            }
+            "reference-f32" => {
+                let $backend = Reference::<f32>::new();
+                $body
+            }
+            "reference-f64" => {
+                let $backend = Reference::<f64>::new();
                 $body
             }
             other => Err(GateError::UnknownBackend { name: other.into(), known: BACKENDS.into() }),

@@ -1,6 +1,7 @@
 //! The reference substep (SPEC §4), the force accumulation and the energy,
 //! written as plain serial loops in element order. This is the function
-//! every backend must compute; the serial backend runs it as is.
+//! every backend must compute; `yarn_backend_cpu::Reference` runs it as is,
+//! and the conformance suite holds the fast backends to it.
 
 use crate::terms::{bend_energy, bend_forces, gravity_energy, gravity_force, spring_energy, spring_force};
 use crate::{Model, Real, State, V3};

@@ -32,15 +32,19 @@ pub fn spring_force<T: Real>(a: &V3<T>, b: &V3<T>, rest: T, k: T) -> V3<T> {
     if length > T::zero() { d * (k * (length - rest) / length) } else { V3::zeros() }
 }
 
-/// A bending joint's unit tangents u, v and segment lengths ℓ0, ℓ1.
+/// A bending joint's unit tangents u, v and inverse segment lengths.
 struct Joint<T> {
     u: V3<T>,
     v: V3<T>,
-    l0: T,
-    l1: T,
+    inv_l0: T,
+    inv_l1: T,
 }
 
 /// The joint at `b`, or `None` if either segment has zero length.
+///
+/// Each tangent is its segment times the reciprocal length: one division
+/// per segment, which vectorising backends reproduce operation for
+/// operation.
 #[inline]
 fn joint<T: Real>(a: &V3<T>, b: &V3<T>, c: &V3<T>) -> Option<Joint<T>> {
     let (d0, d1) = (b - a, c - b);
@@ -48,13 +52,14 @@ fn joint<T: Real>(a: &V3<T>, b: &V3<T>, c: &V3<T>) -> Option<Joint<T>> {
     if !(l0 > T::zero() && l1 > T::zero()) {
         return None;
     }
-    Some(Joint { u: d0 / l0, v: d1 / l1, l0, l1 })
+    let (inv_l0, inv_l1) = (T::one() / l0, T::one() / l1);
+    Some(Joint { u: d0 * inv_l0, v: d1 * inv_l1, inv_l0, inv_l1 })
 }
 
 /// s = u·v clamped to [−1, 1]: the cosine of the turning angle.
 #[inline]
 fn cosine<T: Real>(u: &V3<T>, v: &V3<T>) -> T {
-    u.dot(v).clamp(-T::one(), T::one())
+    (u.x * v.x + u.y * v.y + u.z * v.z).clamp(-T::one(), T::one())
 }
 
 /// Energy ½ k_b (θ − target)² of the bending joint (a, b, c), where
@@ -73,29 +78,22 @@ pub fn bend_energy<T: Real>(a: &V3<T>, b: &V3<T>, c: &V3<T>, target: T, k: T) ->
 
 /// Forces `[f_a, f_b, f_c]` of the bending joint (a, b, c), or `None` when
 /// sin θ < [`MIN_SIN_THETA`] or a segment has zero length.
-#[inline]
-pub fn bend_forces<T: Real>(a: &V3<T>, b: &V3<T>, c: &V3<T>, target: T, k: T) -> Option<[V3<T>; 3]> {
-    let Joint { u, v, l0, l1 } = joint(a, b, c)?;
-    let (fa, fc) = bend_end_forces(&u, &v, l0, l1, target, k)?;
-    Some([fa, -(fa + fc), fc])
-}
-
-/// Bending forces `(f_a, f_c)` on the first and last node of a joint given
-/// its unit tangents `u`, `v` and segment lengths `l0`, `l1`; the middle
-/// node gets −(f_a + f_c). `None` when sin θ < [`MIN_SIN_THETA`] or a length
-/// is not positive. Backends that cache segment tangents call this directly.
 ///
 /// With ∇θ = −∇s / sin θ (the SPEC §3 erratum to the paper's eq. 6) and
-/// c = k_b (θ − target) / sin θ: f_a = −c (v − s u)/ℓ0, f_c = c (u − s v)/ℓ1.
+/// c = k_b (θ − target) / sin θ: f_a = −c (v − s u)/ℓ0, f_c = c (u − s v)/ℓ1,
+/// and the middle node gets −(f_a + f_c).
 #[inline]
-pub fn bend_end_forces<T: Real>(u: &V3<T>, v: &V3<T>, l0: T, l1: T, target: T, k: T) -> Option<(V3<T>, V3<T>)> {
-    let s = cosine(u, v);
+pub fn bend_forces<T: Real>(a: &V3<T>, b: &V3<T>, c: &V3<T>, target: T, k: T) -> Option<[V3<T>; 3]> {
+    let Joint { u, v, inv_l0, inv_l1 } = joint(a, b, c)?;
+    let s = cosine(&u, &v);
     let sin_theta = (T::one() - s * s).sqrt();
-    if !(sin_theta >= T::of(MIN_SIN_THETA) && l0 > T::zero() && l1 > T::zero()) {
+    #[allow(clippy::neg_cmp_op_on_partial_ord, reason = "a NaN angle skips the joint too")]
+    if !(sin_theta >= T::of(MIN_SIN_THETA)) {
         return None;
     }
     let coeff = k * (s.turning_angle() - target) / sin_theta;
-    Some(((v - u * s) * (-coeff / l0), (u - v * s) * (coeff / l1)))
+    let (fa, fc) = ((v - u * s) * (-coeff * inv_l0), (u - v * s) * (coeff * inv_l1));
+    Some([fa, -(fa + fc), fc])
 }
 
 /// Gravitational energy m g y of one node (SPEC §3).
