@@ -27,6 +27,33 @@
 
 #![forbid(unsafe_code)]
 
+/// The [`Backend`] methods that [`Serial`] and [`Rayon`] hand straight to
+/// their kernel, for a backend with a `kernel()` accessor and `Real = $real`.
+macro_rules! forward_to_kernel {
+    ($real:ty) => {
+        fn set_params(&mut self, params: &yarn_model::Params) -> Result<(), yarn_model::BackendError> {
+            self.kernel()?.set_params(params)
+        }
+
+        fn set_pins(&mut self, pins: &[yarn_topology::Pin]) -> Result<(), yarn_model::BackendError> {
+            self.kernel()?.set_pins(pins)
+        }
+
+        fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), yarn_model::BackendError> {
+            self.kernel()?.set_contacts_alive(alive)
+        }
+
+        fn write_state(&mut self, state: &yarn_model::State<$real>) -> Result<(), yarn_model::BackendError> {
+            self.kernel()?.write_state(state)
+        }
+
+        fn read_state(&mut self, state: &mut yarn_model::State<$real>) -> Result<(), yarn_model::BackendError> {
+            self.kernel()?.read_state(state);
+            Ok(())
+        }
+    };
+}
+
 mod kernel;
 mod rayon_backend;
 
@@ -65,26 +92,7 @@ impl<T: Real> Backend for Serial<T> {
         Ok(())
     }
 
-    fn set_params(&mut self, params: &Params) -> Result<(), BackendError> {
-        self.kernel()?.set_params(params)
-    }
-
-    fn set_pins(&mut self, pins: &[Pin]) -> Result<(), BackendError> {
-        self.kernel()?.set_pins(pins)
-    }
-
-    fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
-        self.kernel()?.set_contacts_alive(alive)
-    }
-
-    fn write_state(&mut self, state: &State<T>) -> Result<(), BackendError> {
-        self.kernel()?.write_state(state)
-    }
-
-    fn read_state(&mut self, state: &mut State<T>) -> Result<(), BackendError> {
-        self.kernel()?.read_state(state);
-        Ok(())
-    }
+    forward_to_kernel!(T);
 
     fn compute_forces(&mut self, forces: &mut Vec<V3<T>>) -> Result<(), BackendError> {
         self.kernel()?.compute_forces(forces);

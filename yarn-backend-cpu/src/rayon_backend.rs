@@ -1,7 +1,7 @@
 //! The `Rayon` backend: the CPU kernel's blocks run on a rayon pool.
 
-use yarn_model::{Backend, BackendError, Params, State, V3};
-use yarn_topology::{Fabric, Pin};
+use yarn_model::{Backend, BackendError, Params, V3};
+use yarn_topology::Fabric;
 
 use crate::kernel::{Exec, Kernel};
 
@@ -61,26 +61,7 @@ impl Backend for Rayon {
         Ok(())
     }
 
-    fn set_params(&mut self, params: &Params) -> Result<(), BackendError> {
-        self.kernel()?.set_params(params)
-    }
-
-    fn set_pins(&mut self, pins: &[Pin]) -> Result<(), BackendError> {
-        self.kernel()?.set_pins(pins)
-    }
-
-    fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
-        self.kernel()?.set_contacts_alive(alive)
-    }
-
-    fn write_state(&mut self, state: &State<f32>) -> Result<(), BackendError> {
-        self.kernel()?.write_state(state)
-    }
-
-    fn read_state(&mut self, state: &mut State<f32>) -> Result<(), BackendError> {
-        self.kernel()?.read_state(state);
-        Ok(())
-    }
+    forward_to_kernel!(f32);
 
     fn compute_forces(&mut self, forces: &mut Vec<V3<f32>>) -> Result<(), BackendError> {
         self.install(|kernel| kernel.compute_forces(forces))
