@@ -2,7 +2,8 @@
 //!
 //! This crate owns the metrics of SPEC §6 ([`metrics`]), the `check` gate
 //! built from them ([`check`]), the cross-backend conformance suite
-//! ([`conformance`]), and the `yarn-gate` command-line tool. It
+//! ([`conformance`]), the GPU check ([`gpucheck`]), benchmarks
+//! ([`mod@bench`]), and the `yarn-gate` command-line tool. It
 //! drives backends only through the [`yarn_model::Backend`] trait, so every
 //! backend is measured by the same code.
 
@@ -11,6 +12,7 @@
 pub mod bench;
 pub mod check;
 pub mod conformance;
+pub mod gpucheck;
 pub mod metrics;
 
 use yarn_model::BackendError;
@@ -26,6 +28,9 @@ pub enum GateError {
     /// The backend refused or failed.
     #[error(transparent)]
     Backend(#[from] BackendError),
+    /// No GPU could be opened.
+    #[error(transparent)]
+    Gpu(#[from] yarn_backend_wgpu::GpuError),
     /// Curl needs interior nodes: at least 3 stitches each way.
     #[error("a {width}x{height} patch has no interior stitches to fit a mid-plane to; use at least 3x3")]
     TooSmall {

@@ -5,9 +5,11 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use yarn_backend_cpu::{Rayon, Reference, Serial};
+use yarn_backend_wgpu::{Gpu, Mode, Wgpu};
 use yarn_gate::GateError;
 use yarn_gate::bench::{BenchConfig, bench, table};
 use yarn_gate::check::{CheckConfig, CheckReport, run_check};
+use yarn_gate::gpucheck::run_gpucheck;
 use yarn_model::Params;
 
 /// yarnify's behavioural gate: does the simulated yarn behave like knit?
@@ -26,6 +28,19 @@ enum Command {
     /// Measure the cost per node per substep of each backend over square
     /// patches (median of repeated runs after a warm-up).
     Bench(BenchArgs),
+    /// Check the GPU backend against the serial f32 one on this machine's
+    /// adapter, in both accumulation modes (exit code 0 only if both pass).
+    Gpucheck(GpucheckArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct GpucheckArgs {
+    /// Patch size in stitches, WIDTHxHEIGHT.
+    #[arg(long, default_value = "16x16", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -55,8 +70,9 @@ struct CheckArgs {
     /// Substeps of free relaxation; each stiffness probe holds as long.
     #[arg(long, default_value_t = 12_000)]
     steps: u64,
-    /// Backend: serial (f64, the ground truth), serial-f32, rayon (f32), or
-    /// reference-f32 / reference-f64 (the element-by-element substep).
+    /// Backend: serial (f64, the ground truth), serial-f32, rayon, wgpu
+    /// (gather), wgpu-fixed (f32), or reference-f32 / reference-f64 (the
+    /// element-by-element substep).
     #[arg(long, default_value = "serial")]
     backend: String,
     /// Rest-curl fraction κ; 1 gives a patch that should read flat.
@@ -73,7 +89,8 @@ fn parse_size(text: &str) -> Result<(usize, usize), String> {
     Ok((w.trim().parse().map_err(|_| err())?, h.trim().parse().map_err(|_| err())?))
 }
 
-const BACKENDS: &str = "serial, serial-f64, serial-f32, rayon, reference-f32, reference-f64";
+const BACKENDS: &str =
+    "serial, serial-f64, serial-f32, rayon, wgpu (= wgpu-gather), wgpu-fixed, reference-f32, reference-f64";
 
 /// Run `$body` with `$backend` bound to the backend named `$name`.
 macro_rules! with_backend {
@@ -89,6 +106,14 @@ macro_rules! with_backend {
             }
             "rayon" => {
                 let $backend = rayon($threads)?;
+                $body
+            }
+            "wgpu" | "wgpu-gather" => {
+                let $backend = Wgpu::new(Mode::Gather)?;
+                $body
+            }
+            "wgpu-fixed" => {
+                let $backend = Wgpu::new(Mode::FixedPointAtomic)?;
                 $body
             }
             "reference-f32" => {
@@ -155,6 +180,22 @@ fn run_bench(args: &BenchArgs) -> Result<Vec<yarn_gate::bench::BenchRow>, GateEr
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Gpucheck(args) => {
+            match Gpu::new().map_err(GateError::from).and_then(|gpu| run_gpucheck(&gpu, args.size.0, args.size.1)) {
+                Ok(report) => {
+                    if args.json {
+                        println!("{}", serde_json::to_string_pretty(&report).expect("report serialises"));
+                    } else {
+                        print!("{}", report.table());
+                    }
+                    if report.pass { ExitCode::SUCCESS } else { ExitCode::FAILURE }
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
         Command::Bench(args) => match run_bench(&args) {
             Ok(rows) => {
                 if args.json {

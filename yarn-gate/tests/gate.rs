@@ -103,3 +103,49 @@ fn cli_bench_json_has_a_row_per_backend_and_size() {
     assert_eq!(rows[5]["backend"], "rayon-f32x2");
     assert_eq!(rows[5]["threads"], 2);
 }
+
+/// `gpucheck` on this machine's adapter: both modes agree with Serial f32
+/// and the JSON carries the documented keys. Skips, loudly, only when there
+/// is no adapter and `CI` is unset.
+#[test]
+fn cli_gpucheck_passes_and_reports_every_mode() {
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate")).args(["gpucheck", "--json"]).output().unwrap();
+    if output.status.code() == Some(2) && std::env::var_os("CI").is_none() {
+        eprintln!("SKIPPING gpucheck: {}", String::from_utf8_lossy(&output.stderr));
+        return;
+    }
+    let report: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    assert!(report["adapter"].as_str().is_some_and(|a| !a.is_empty()));
+    let modes = report["modes"].as_array().unwrap();
+    let names: Vec<_> = modes.iter().map(|m| m["mode"].as_str().unwrap()).collect();
+    assert_eq!(names, ["gather", "fixed"]);
+    for m in modes {
+        for key in ["force_max_err", "force_rel_err", "trajectory_max_err"] {
+            assert!(m[key].as_f64().is_some_and(f64::is_finite), "{key} in {m}");
+        }
+        assert_eq!(m["pass"], true, "{m}");
+    }
+    // Fixed point is quantised, so it cannot be exact; gather has no quantum.
+    assert!(modes[1]["force_max_err"].as_f64().unwrap() > 0.0);
+    assert!(modes[0]["force_rel_err"].as_f64().unwrap() <= 1e-5);
+    assert_eq!(report["pass"], true);
+    assert!(output.status.success());
+}
+
+/// With no usable adapter, the error says so and says what to install.
+#[test]
+fn cli_without_an_adapter_says_what_to_install() {
+    // Metal does not exist on Linux, so asking for it alone finds nothing.
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
+        .args(["check", "--backend", "wgpu", "--steps", "10"])
+        .env("WGPU_BACKEND", "metal")
+        .output()
+        .unwrap();
+    if cfg!(target_os = "macos") {
+        return;
+    }
+    assert_eq!(output.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("no GPU adapter found") && stderr.contains("mesa-vulkan-drivers"), "{stderr}");
+    assert!(stderr.contains("CPU backend"), "{stderr}");
+}

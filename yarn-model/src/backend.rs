@@ -27,6 +27,37 @@ pub enum BackendError {
     /// An operation that needs a fabric was called before [`Backend::load`].
     #[error("no fabric is loaded; call `load` first")]
     NotLoaded,
+    /// The fabric needs more of a device resource than the device allows.
+    #[error(
+        "{what} needs {needed} but the device allows {limit} ({limit_name}); use a smaller fabric or a CPU backend"
+    )]
+    TooLarge {
+        /// What does not fit, e.g. "node buffer (bytes)".
+        what: &'static str,
+        /// How much the fabric needs.
+        needed: u64,
+        /// The device's limit.
+        limit: u64,
+        /// The limit's name in the device API, to look up.
+        limit_name: &'static str,
+    },
+    /// Fixed-point force accumulation overflowed: some force was too large
+    /// to quantise. The state was restored to before the failing call.
+    #[error(
+        "fixed-point force overflow during substeps {first}..{end} (a force beyond ±{max_force:e}); \
+         the state is as before this call: lower the stiffnesses or the substep, or use the gather mode"
+    )]
+    Overflow {
+        /// First substep of the failing call (counted since load).
+        first: u64,
+        /// One past its last substep.
+        end: u64,
+        /// The largest force the fixed-point scale can hold.
+        max_force: f64,
+    },
+    /// The compute device reported an error or was lost.
+    #[error("compute device error: {0}")]
+    Device(String),
 }
 
 /// A compute backend: something that can hold a fabric and advance it by the

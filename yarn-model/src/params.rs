@@ -210,22 +210,22 @@ mod tests {
                 doc.push_str(text);
                 continue;
             }
-            if let Some(field) = line.strip_prefix("pub ").and_then(|l| l.split(':').next()) {
-                if let Some(&(_, value)) = actual.iter().find(|(name, _)| *name == field) {
-                    let documented: f64 = doc
-                        .split("(default: ")
-                        .nth(1)
-                        .and_then(|rest| rest.split(')').next())
-                        .unwrap_or_else(|| panic!("`{field}` has no (default: X) in its doc"))
-                        .parse()
-                        .unwrap();
-                    let tolerance = 1e-6 * value.abs().max(1e-300);
-                    assert!(
-                        (documented - value).abs() <= tolerance,
-                        "`{field}`: doc says {documented}, Default is {value}"
-                    );
-                    checked += 1;
-                }
+            if let Some(field) = line.strip_prefix("pub ").and_then(|l| l.split(':').next())
+                && let Some(&(_, value)) = actual.iter().find(|(name, _)| *name == field)
+            {
+                let documented: f64 = doc
+                    .split("(default: ")
+                    .nth(1)
+                    .and_then(|rest| rest.split(')').next())
+                    .unwrap_or_else(|| panic!("`{field}` has no (default: X) in its doc"))
+                    .parse()
+                    .unwrap();
+                let tolerance = 1e-6 * value.abs().max(1e-300);
+                assert!(
+                    (documented - value).abs() <= tolerance,
+                    "`{field}`: doc says {documented}, Default is {value}"
+                );
+                checked += 1;
             }
             doc.clear();
         }

@@ -146,12 +146,12 @@ impl Fabric {
 
 /// Column of the k-th loop laid in `row`.
 fn column_of(row: usize, k: usize, width: usize) -> usize {
-    if row % 2 == 0 { k } else { width - 1 - k }
+    if row.is_multiple_of(2) { k } else { width - 1 - k }
 }
 
 /// Loop phase of the s-th node laid in `row`.
 fn phase_of(row: usize, s: usize) -> usize {
-    if row % 2 == 0 { s } else { SEG - s }
+    if row.is_multiple_of(2) { s } else { SEG - s }
 }
 
 /// Node index of phase `p` (1..SEG-1 on odd rows, 0..SEG-1 on even rows; the

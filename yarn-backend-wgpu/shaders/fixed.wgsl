@@ -1,0 +1,91 @@
+// Fixed-point mode, the paper's scheme (its Algorithm 1 and Appendix C):
+// every element scatters round(f·S) into three i32 accumulators per node
+// with atomicAdd. A force too large to quantise, or a sum that wraps, sets
+// `overflow[0]`, which the host checks after the batch; nothing wraps
+// silently.
+
+@group(0) @binding(0) var<uniform> p: Params;
+@group(0) @binding(1) var<storage, read> x: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read_write> v: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> out: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> chain: array<vec2<f32>>;
+@group(0) @binding(5) var<storage, read> contacts: array<Contact>;
+@group(0) @binding(6) var<storage, read_write> acc: array<atomic<i32>>;
+@group(0) @binding(7) var<storage, read_write> overflow: array<atomic<u32>>;
+
+fn add(node: u32, f: vec3<f32>) {
+    let q = f * p.scale;
+    // Also catches NaN, which fails every comparison.
+    if !(abs(q.x) <= p.max_force * p.scale && abs(q.y) <= p.max_force * p.scale && abs(q.z) <= p.max_force * p.scale) {
+        atomicStore(&overflow[0], 1u);
+        return;
+    }
+    let quanta = vec3<i32>(round(q));
+    for (var c = 0u; c < 3u; c++) {
+        let old = atomicAdd(&acc[3u * node + c], quanta[c]);
+        let sum = old + quanta[c];
+        // Two's-complement overflow: both addends' signs differ from the sum's.
+        if ((old ^ sum) & (quanta[c] ^ sum)) < 0 {
+            atomicStore(&overflow[0], 1u);
+        }
+    }
+}
+
+// Thread t handles segment t, joint t and contact t, where they exist.
+@compute @workgroup_size(WORKGROUP)
+fn scatter(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
+           @builtin(num_workgroups) groups: vec3<u32>) {
+    let t = thread_index(group, local, groups);
+    if t + 1u < p.nodes {
+        let d0 = x[t + 1u].xyz - x[t].xyz;
+        let f = spring_force(d0, chain[t].x, p.stretch);
+        add(t, f);
+        add(t + 1u, -f);
+        if t + 2u < p.nodes {
+            let joint = joint_forces(segment_of(d0), segment_of(x[t + 2u].xyz - x[t + 1u].xyz), chain[t].y, p.bend,
+                                     p.min_sin);
+            add(t, joint.first);
+            add(t + 1u, -(joint.first + joint.last));
+            add(t + 2u, joint.last);
+        }
+    }
+    if t < p.contacts {
+        let c = contacts[t];
+        if c.alive != 0u {
+            let f = spring_force(x[c.b].xyz - x[c.a].xyz, c.rest, p.contact);
+            add(c.a, f);
+            add(c.b, -f);
+        }
+    }
+}
+
+// Read and clear node i's accumulators: its force, plus gravity.
+fn take_force(i: u32) -> vec3<f32> {
+    let q = vec3<f32>(f32(atomicExchange(&acc[3u * i], 0)), f32(atomicExchange(&acc[3u * i + 1u], 0)),
+                      f32(atomicExchange(&acc[3u * i + 2u], 0)));
+    return q / p.scale + vec3<f32>(0.0, p.gravity_y, 0.0);
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
+        @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = thread_index(group, local, groups);
+    if i >= p.nodes {
+        return;
+    }
+    let velocity = (v[i].xyz + take_force(i) * p.h_over_m) * p.damping_factor;
+    v[i] = vec4<f32>(velocity, 0.0);
+    if (p.flags & FRICTION_ON) == 0u {
+        out[i] = vec4<f32>(x[i].xyz + velocity * p.h, 0.0);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn forces(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
+          @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = thread_index(group, local, groups);
+    if i >= p.nodes {
+        return;
+    }
+    out[i] = vec4<f32>(take_force(i), 0.0);
+}

@@ -1,0 +1,34 @@
+// Friction and move (SPEC §4 steps 3–4), both modes: each node sums the
+// Jacobi friction changes of its contacts, all from x and v* (node a gets
+// −Δw/2, b +Δw/2), then moves. It writes the other pair of state buffers,
+// since its neighbours still read this one.
+
+@group(0) @binding(0) var<uniform> p: Params;
+@group(0) @binding(1) var<storage, read> x: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> v: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> x_next: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> v_next: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read> contacts: array<Contact>;
+@group(0) @binding(6) var<storage, read> start: array<u32>;
+@group(0) @binding(7) var<storage, read> incident: array<u32>;
+
+@compute @workgroup_size(WORKGROUP)
+fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
+        @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = thread_index(group, local, groups);
+    if i >= p.nodes {
+        return;
+    }
+    var dv = vec3<f32>(0.0);
+    for (var e = start[i]; e < start[i + 1u]; e++) {
+        let entry = incident[e];
+        let c = contacts[entry & ~IS_B];
+        if c.alive != 0u {
+            let dw = friction_change(x[c.b].xyz - x[c.a].xyz, v[c.b].xyz - v[c.a].xyz, c.rest, p);
+            dv -= dw * select(0.5, -0.5, (entry & IS_B) != 0u);
+        }
+    }
+    let velocity = v[i].xyz + dv;
+    v_next[i] = vec4<f32>(velocity, 0.0);
+    x_next[i] = vec4<f32>(x[i].xyz + velocity * p.h, 0.0);
+}

@@ -1,0 +1,219 @@
+//! The persistent GPU context: adapter, device, queue and the compiled
+//! pipelines, built once and shared by every backend on it (STYLE 5). It
+//! also collects the device's asynchronous errors and its loss, so a
+//! failing dispatch surfaces as an error instead of a hang.
+
+use std::sync::{Arc, Mutex, PoisonError};
+
+use crate::shaders::{self, Pass};
+
+/// Why no GPU context could be made.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum GpuError {
+    /// No adapter was found.
+    #[error(
+        "no GPU adapter found ({reason}). On Linux without a GPU, install lavapipe \
+         (`apt-get install mesa-vulkan-drivers`), or use a CPU backend (`serial`, `rayon`)"
+    )]
+    NoAdapter {
+        /// What wgpu said.
+        reason: String,
+    },
+    /// The adapter refused to open a device.
+    #[error("the GPU adapter `{adapter}` could not open a device: {reason}")]
+    Device {
+        /// The adapter's name.
+        adapter: String,
+        /// What wgpu said.
+        reason: String,
+    },
+}
+
+/// A pass's pipelines, one per entry point, and the bind group layout they
+/// share.
+#[derive(Debug)]
+pub(crate) struct Kernel<const N: usize> {
+    pub(crate) layout: wgpu::BindGroupLayout,
+    pub(crate) entries: [wgpu::ComputePipeline; N],
+}
+
+/// How a pass binds each of its buffers, in binding order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Slot {
+    Uniform,
+    Read,
+    ReadWrite,
+}
+
+/// The compiled passes.
+#[derive(Debug)]
+pub(crate) struct Kernels {
+    /// Entry points `step`, `forces`.
+    pub(crate) gather: Kernel<2>,
+    /// Entry points `scatter`, `step`, `forces`.
+    pub(crate) fixed: Kernel<3>,
+    pub(crate) friction: Kernel<1>,
+    pub(crate) pins: Kernel<1>,
+}
+
+/// A GPU device with yarnify's pipelines, shareable between backends.
+#[derive(Debug)]
+pub struct Gpu {
+    pub(crate) device: wgpu::Device,
+    pub(crate) queue: wgpu::Queue,
+    pub(crate) limits: wgpu::Limits,
+    info: wgpu::AdapterInfo,
+    errors: Arc<Mutex<Vec<String>>>,
+    pub(crate) kernels: Kernels,
+}
+
+impl Gpu {
+    /// Open the default adapter (high performance first) and build the
+    /// pipelines, blocking until done.
+    ///
+    /// # Errors
+    /// [`GpuError::NoAdapter`] when there is no adapter, with what to
+    /// install; [`GpuError::Device`] when it cannot open a device.
+    pub fn new() -> Result<Arc<Self>, GpuError> {
+        pollster::block_on(Self::new_async())
+    }
+
+    /// [`Gpu::new`] without blocking, for the browser.
+    ///
+    /// # Errors
+    /// As [`Gpu::new`].
+    pub async fn new_async() -> Result<Arc<Self>, GpuError> {
+        // Vulkan, Metal, DX12 or the browser's WebGPU (WGPU_BACKEND overrides):
+        // compute needs no GL fallback, and probing for one only adds noise.
+        let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        descriptor.backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY);
+        let instance = wgpu::Instance::new(descriptor);
+        let adapter = instance
+            .request_adapter(&wgpu::RequestAdapterOptions {
+                power_preference: wgpu::PowerPreference::HighPerformance,
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| GpuError::NoAdapter { reason: e.to_string() })?;
+        let info = adapter.get_info();
+        // Ask for everything the adapter offers, so large fabrics fit where
+        // the hardware allows; no feature beyond WebGPU's core is used.
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("yarnify"),
+                required_limits: adapter.limits(),
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| GpuError::Device { adapter: info.name.clone(), reason: e.to_string() })?;
+        let errors = Arc::new(Mutex::new(Vec::new()));
+        let sink = Arc::clone(&errors);
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            sink.lock().unwrap_or_else(PoisonError::into_inner).push(e.to_string());
+        }));
+        let sink = Arc::clone(&errors);
+        device.set_device_lost_callback(move |reason, message| {
+            sink.lock().unwrap_or_else(PoisonError::into_inner).push(format!("device lost ({reason:?}): {message}"));
+        });
+        use Slot::{Read, ReadWrite, Uniform};
+        let kernels = Kernels {
+            gather: build(
+                &device,
+                &shaders::GATHER,
+                &[Uniform, Read, ReadWrite, ReadWrite, Read, Read, Read, Read],
+                ["step", "forces"],
+            ),
+            fixed: build(
+                &device,
+                &shaders::FIXED,
+                &[Uniform, Read, ReadWrite, ReadWrite, Read, Read, ReadWrite, ReadWrite],
+                ["scatter", "step", "forces"],
+            ),
+            friction: build(
+                &device,
+                &shaders::FRICTION,
+                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, Read],
+                ["main"],
+            ),
+            pins: build(&device, &shaders::PINS, &[Uniform, ReadWrite, ReadWrite, Read], ["main"]),
+        };
+        let limits = device.limits();
+        let gpu = Self { device, queue, limits, info, errors, kernels };
+        gpu.take_error().map_err(|reason| GpuError::Device { adapter: gpu.info.name.clone(), reason })?;
+        Ok(Arc::new(gpu))
+    }
+
+    /// The adapter's name and backend, e.g. `"llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan)"`.
+    pub fn adapter(&self) -> String {
+        format!("{} ({:?})", self.info.name, self.info.backend)
+    }
+
+    /// The first error the device reported since the last call, if any.
+    pub(crate) fn take_error(&self) -> Result<(), String> {
+        let mut errors = self.errors.lock().unwrap_or_else(PoisonError::into_inner);
+        match errors.first() {
+            Some(first) => {
+                let first = first.clone();
+                errors.clear();
+                Err(first)
+            }
+            None => Ok(()),
+        }
+    }
+
+    /// Workgroups for `threads` threads: (x, y) within the per-dimension
+    /// limit, or `None` if even a square grid cannot hold them.
+    pub(crate) fn groups(&self, threads: u32) -> Option<(u32, u32)> {
+        let groups = threads.div_ceil(crate::WORKGROUP).max(1);
+        let max = self.limits.max_compute_workgroups_per_dimension;
+        let rows = groups.div_ceil(max);
+        (rows <= max).then_some(if rows == 1 { (groups, 1) } else { (max, rows) })
+    }
+}
+
+/// Compile `pass` with one bind group layout of `slots`, for each entry
+/// point.
+fn build<const N: usize>(device: &wgpu::Device, pass: &Pass, slots: &[Slot], entries: [&str; N]) -> Kernel<N> {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(pass.name),
+        source: wgpu::ShaderSource::Wgsl(pass.source().into()),
+    });
+    let layout_entries: Vec<_> = slots
+        .iter()
+        .enumerate()
+        .map(|(binding, slot)| wgpu::BindGroupLayoutEntry {
+            binding: binding as u32,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: match slot {
+                    Slot::Uniform => wgpu::BufferBindingType::Uniform,
+                    Slot::Read => wgpu::BufferBindingType::Storage { read_only: true },
+                    Slot::ReadWrite => wgpu::BufferBindingType::Storage { read_only: false },
+                },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        })
+        .collect();
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(pass.name),
+        entries: &layout_entries,
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(pass.name),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let entries = entries.map(|entry| {
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
+    });
+    Kernel { layout, entries }
+}

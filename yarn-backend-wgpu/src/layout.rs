@@ -1,0 +1,126 @@
+//! The Rust mirrors of the WGSL structs in `common.wgsl`, uploaded with
+//! `bytemuck`. A test checks every size and field offset against naga's
+//! layouter, so the two cannot drift apart.
+
+use bytemuck::{Pod, Zeroable};
+
+/// Mirrors `Params`: the parameters and counts every pass reads.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct GpuParams {
+    pub(crate) nodes: u32,
+    pub(crate) contacts: u32,
+    pub(crate) pins: u32,
+    pub(crate) flags: u32,
+    pub(crate) stretch: f32,
+    pub(crate) bend: f32,
+    pub(crate) contact: f32,
+    pub(crate) friction: f32,
+    pub(crate) h: f32,
+    pub(crate) h_over_m: f32,
+    pub(crate) damping_factor: f32,
+    pub(crate) friction_impulse: f32,
+    pub(crate) gravity_y: f32,
+    pub(crate) min_sin: f32,
+    pub(crate) scale: f32,
+    pub(crate) max_force: f32,
+}
+
+/// `Params::flags` bit: friction is on, so the move is in the friction pass.
+pub(crate) const FRICTION_ON: u32 = 1;
+
+/// Mirrors `Contact`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct GpuContact {
+    pub(crate) a: u32,
+    pub(crate) b: u32,
+    pub(crate) rest: f32,
+    pub(crate) alive: u32,
+}
+
+/// Mirrors `Pin`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct GpuPin {
+    pub(crate) goal: [f32; 3],
+    pub(crate) node: u32,
+}
+
+/// Bit of an `incident` entry marking the node as the contact's `b`.
+pub(crate) const IS_B: u32 = 0x8000_0000;
+
+#[cfg(test)]
+mod tests {
+    use std::mem::{offset_of, size_of};
+
+    use super::*;
+    use crate::shaders;
+
+    /// (name, size) of the WGSL struct `name`, with each member's offset.
+    fn wgsl_layout(name: &str) -> (u32, Vec<(String, u32)>) {
+        let (module, _) = shaders::tests::validate(&shaders::PINS);
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).expect("layout");
+        let (handle, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).expect(name);
+        let naga::TypeInner::Struct { members, .. } = &ty.inner else { panic!("{name} is not a struct") };
+        let members = members.iter().map(|m| (m.name.clone().unwrap_or_default(), m.offset)).collect();
+        (layouter[handle].size, members)
+    }
+
+    fn offsets(name: &str) -> Vec<u32> {
+        wgsl_layout(name).1.into_iter().map(|(_, offset)| offset).collect()
+    }
+
+    #[test]
+    fn params_match_wgsl() {
+        let (size, members) = wgsl_layout("Params");
+        assert_eq!(size as usize, size_of::<GpuParams>());
+        let rust = [
+            offset_of!(GpuParams, nodes),
+            offset_of!(GpuParams, contacts),
+            offset_of!(GpuParams, pins),
+            offset_of!(GpuParams, flags),
+            offset_of!(GpuParams, stretch),
+            offset_of!(GpuParams, bend),
+            offset_of!(GpuParams, contact),
+            offset_of!(GpuParams, friction),
+            offset_of!(GpuParams, h),
+            offset_of!(GpuParams, h_over_m),
+            offset_of!(GpuParams, damping_factor),
+            offset_of!(GpuParams, friction_impulse),
+            offset_of!(GpuParams, gravity_y),
+            offset_of!(GpuParams, min_sin),
+            offset_of!(GpuParams, scale),
+            offset_of!(GpuParams, max_force),
+        ];
+        assert_eq!(members.len(), rust.len(), "field count differs: {members:?}");
+        for ((name, wgsl), rust) in members.iter().zip(rust) {
+            assert_eq!(*wgsl as usize, rust, "Params.{name}");
+        }
+    }
+
+    #[test]
+    fn contact_and_pin_match_wgsl() {
+        assert_eq!(wgsl_layout("Contact").0 as usize, size_of::<GpuContact>());
+        assert_eq!(
+            offsets("Contact"),
+            [
+                offset_of!(GpuContact, a),
+                offset_of!(GpuContact, b),
+                offset_of!(GpuContact, rest),
+                offset_of!(GpuContact, alive)
+            ]
+            .map(|o| o as u32)
+        );
+        assert_eq!(wgsl_layout("Pin").0 as usize, size_of::<GpuPin>());
+        assert_eq!(offsets("Pin"), [offset_of!(GpuPin, goal), offset_of!(GpuPin, node)].map(|o| o as u32));
+    }
+
+    #[test]
+    fn shader_constants_match() {
+        let common = shaders::COMMON;
+        assert!(common.contains(&format!("const IS_B: u32 = 0x{IS_B:08x}u;")), "IS_B differs");
+        assert!(common.contains(&format!("const FRICTION_ON: u32 = {FRICTION_ON}u;")), "FRICTION_ON differs");
+    }
+}

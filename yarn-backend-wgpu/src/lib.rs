@@ -1,0 +1,579 @@
+//! The GPU backend for yarnify: SPEC §4 as WGSL compute passes on wgpu.
+//!
+//! Two ways to accumulate forces ([`Mode`]):
+//! - [`Mode::Gather`] (the default): each node sums its own segments,
+//!   joints and contacts through a precomputed adjacency, in a fixed order,
+//!   recomputing the elements it shares with its neighbours. No atomics, no
+//!   quantum, deterministic, and one pass instead of two.
+//! - [`Mode::FixedPointAtomic`]: the paper's scheme. Every element adds
+//!   round(f·S), S = 4096, into three i32 accumulators per node with
+//!   atomicAdd. An overflow is detected and reported, never wrapped.
+//!
+//! A substep is two dispatches (forces and the damped velocity update;
+//! friction and the move), one without friction, plus one for pins when
+//! there are any; fixed-point adds its scatter. [`Backend::advance`] records
+//! all `n` substeps into one submission and reads nothing back; state is
+//! copied back only when asked. It waits for the GPU to finish, so errors
+//! and timings belong to the call that caused them.
+//!
+//! Only WebGPU's core features are used, so the same shaders run in a
+//! browser. The crate owns how the GPU executes the model, never what the
+//! model is: the shaders are the formulas of `yarn_model::terms`, operation
+//! for operation.
+//!
+//! ```no_run
+//! use yarn_backend_wgpu::{Mode, Wgpu};
+//! use yarn_model::{Backend, Params};
+//! use yarn_topology::{Chart, Fabric, Geometry};
+//!
+//! let fabric = Fabric::from_chart(&Chart::stockinette(16, 16)?, &Geometry::default())?;
+//! let mut gpu = Wgpu::new(Mode::Gather)?;
+//! gpu.load(&fabric, &Params::default())?;
+//! gpu.advance(1500)?;
+//! println!("{}: max speed {:.3}", gpu.name(), gpu.state()?.max_speed());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+#![forbid(unsafe_code)]
+
+mod gpu;
+mod layout;
+pub mod shaders;
+
+use std::sync::Arc;
+
+use bytemuck::Pod;
+pub use gpu::{Gpu, GpuError};
+use layout::{FRICTION_ON, GpuContact, GpuParams, GpuPin, IS_B};
+use wgpu::util::DeviceExt;
+use yarn_model::terms::MIN_SIN_THETA;
+use yarn_model::{Backend, BackendError, Model, Params, State, V3};
+use yarn_topology::{Fabric, Pin};
+
+/// Threads per workgroup in every pass (`WORKGROUP` in the shaders).
+pub(crate) const WORKGROUP: u32 = 128;
+
+/// The fixed-point scale S of [`Mode::FixedPointAtomic`] (the paper's).
+pub const FIXED_POINT_SCALE: f32 = 4096.0;
+
+/// How forces are accumulated on the GPU.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Mode {
+    /// Atomics-free per-node gather in a fixed order: deterministic, no
+    /// quantum, and it measured faster (see the README). The default.
+    #[default]
+    Gather,
+    /// The paper's i32 atomicAdd of round(f·S), S = [`FIXED_POINT_SCALE`]:
+    /// forces are quantised to 1/S, and the order of additions varies.
+    FixedPointAtomic,
+}
+
+impl Mode {
+    /// Short name for reports: `"gather"` or `"fixed"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Gather => "gather",
+            Mode::FixedPointAtomic => "fixed",
+        }
+    }
+}
+
+/// The GPU backend, in `f32`.
+#[derive(Debug)]
+pub struct Wgpu {
+    gpu: Arc<Gpu>,
+    mode: Mode,
+    loaded: Option<Loaded>,
+}
+
+impl Wgpu {
+    /// A backend on its own GPU context.
+    ///
+    /// # Errors
+    /// As [`Gpu::new`]: no adapter (with what to install) or no device.
+    pub fn new(mode: Mode) -> Result<Self, GpuError> {
+        Ok(Self::with_gpu(Gpu::new()?, mode))
+    }
+
+    /// A backend on a shared GPU context: building one compiles every
+    /// pipeline, so share it between backends.
+    pub fn with_gpu(gpu: Arc<Gpu>, mode: Mode) -> Self {
+        Self { gpu, mode, loaded: None }
+    }
+
+    /// The GPU context.
+    pub fn gpu(&self) -> &Arc<Gpu> {
+        &self.gpu
+    }
+
+    /// The accumulation mode.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    fn loaded(&mut self) -> Result<&mut Loaded, BackendError> {
+        self.loaded.as_mut().ok_or(BackendError::NotLoaded)
+    }
+
+    /// Wait for the GPU, then report any error it raised.
+    fn finish(&self) -> Result<(), BackendError> {
+        self.gpu
+            .device
+            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+            .map_err(|e| BackendError::Device(e.to_string()))?;
+        self.gpu.take_error().map_err(BackendError::Device)
+    }
+
+    /// Copy `bytes` of `buffer` back to the CPU.
+    fn read(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>, BackendError> {
+        let device = &self.gpu.device;
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes);
+        self.gpu.queue.submit([encoder.finish()]);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, .., move |result| {
+            // The receiver waits below; if it is gone there is nobody to tell.
+            let _ = sender.send(result);
+        });
+        self.finish()?;
+        receiver
+            .recv()
+            .map_err(|e| BackendError::Device(e.to_string()))?
+            .map_err(|e| BackendError::Device(e.to_string()))?;
+        let bytes = staging.get_mapped_range(..).map_err(|e| BackendError::Device(e.to_string()))?.to_vec();
+        staging.unmap();
+        Ok(bytes)
+    }
+
+    /// Read a node buffer of `vec4<f32>` as vectors.
+    fn read_vectors(&self, buffer: &wgpu::Buffer, nodes: usize, out: &mut Vec<V3<f32>>) -> Result<(), BackendError> {
+        let bytes = self.read(buffer, (nodes * 16) as u64)?;
+        out.clear();
+        out.extend(bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes).iter().map(|v| V3::new(v[0], v[1], v[2])));
+        Ok(())
+    }
+}
+
+/// A fabric on the GPU: its buffers, the bind groups of every pass, and the
+/// host copy of the model (for validation and counts).
+#[derive(Debug)]
+struct Loaded {
+    model: Model<f32>,
+    buffers: Buffers,
+    groups: Groups,
+    /// Positions and velocities are double-buffered: `x[px]` and `v[pv]`
+    /// are current.
+    px: usize,
+    pv: usize,
+    substeps: u64,
+}
+
+#[derive(Debug)]
+struct Buffers {
+    params: wgpu::Buffer,
+    x: [wgpu::Buffer; 2],
+    v: [wgpu::Buffer; 2],
+    forces: wgpu::Buffer,
+    /// Per node i: the rest length of segment i and κθ0 of joint i.
+    chain: wgpu::Buffer,
+    contacts: wgpu::Buffer,
+    /// Each node's contacts: `incident[start[i]..start[i + 1]]`.
+    start: wgpu::Buffer,
+    incident: wgpu::Buffer,
+    pins: wgpu::Buffer,
+    pin_count: u32,
+    /// Fixed-point accumulators (three i32 per node) and overflow flag.
+    acc: wgpu::Buffer,
+    overflow: wgpu::Buffer,
+}
+
+/// Bind groups by `[px][pv]`: the forces pass writing the next positions,
+/// the same pass writing `forces`, friction, and pins.
+#[derive(Debug)]
+struct Groups {
+    step: [[wgpu::BindGroup; 2]; 2],
+    probe: [[wgpu::BindGroup; 2]; 2],
+    friction: [[wgpu::BindGroup; 2]; 2],
+    pins: [[wgpu::BindGroup; 2]; 2],
+}
+
+impl Loaded {
+    fn gpu_params(&self) -> GpuParams {
+        let c = self.model.coeffs;
+        GpuParams {
+            nodes: self.model.node_count() as u32,
+            contacts: self.model.contacts.len() as u32,
+            pins: self.buffers.pin_count,
+            flags: if c.friction > 0.0 { FRICTION_ON } else { 0 },
+            stretch: c.stretch,
+            bend: c.bend,
+            contact: c.contact,
+            friction: c.friction,
+            h: c.h,
+            h_over_m: c.h_over_m,
+            damping_factor: c.damping_factor,
+            friction_impulse: c.friction_impulse,
+            gravity_y: -c.mass * c.gravity,
+            min_sin: MIN_SIN_THETA as f32,
+            scale: FIXED_POINT_SCALE,
+            max_force: max_force() as f32,
+        }
+    }
+}
+
+/// The largest force component one fixed-point addition takes: half the
+/// i32 range, so a node's sum of a few such terms is checked for wrapping.
+fn max_force() -> f64 {
+    f64::from(i32::MAX) / f64::from(FIXED_POINT_SCALE) / 2.0
+}
+
+/// A storage buffer holding `data` (padded to one 16-byte element when
+/// empty: a binding may not be).
+fn storage(device: &wgpu::Device, label: &str, data: &[impl Pod]) -> wgpu::Buffer {
+    let bytes: &[u8] = bytemuck::cast_slice(data);
+    let contents = if bytes.is_empty() { &[0u8; 16][..] } else { bytes };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+    })
+}
+
+fn vec4s(v: &[V3<f32>]) -> Vec<[f32; 4]> {
+    v.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect()
+}
+
+/// Per node i: the rest length of segment i and κθ0 of joint i, zero past
+/// the yarn's ends.
+fn chain(model: &Model<f32>) -> Vec<[f32; 2]> {
+    let kappa = model.coeffs.rest_curl;
+    (0..model.node_count())
+        .map(|i| {
+            [
+                model.spring_rest.get(i).copied().unwrap_or(0.0),
+                model.rest_angle.get(i).map_or(0.0, |&theta0| kappa * theta0),
+            ]
+        })
+        .collect()
+}
+
+fn gpu_contacts(model: &Model<f32>) -> Vec<GpuContact> {
+    model
+        .contacts
+        .iter()
+        .zip(&model.alive)
+        .map(|(c, &alive)| GpuContact { a: c.a, b: c.b, rest: c.rest, alive: u32::from(alive) })
+        .collect()
+}
+
+/// Each node's contacts in contact order, as `start` offsets into
+/// `incident` entries (the contact index, with [`IS_B`] where the node is
+/// the contact's `b`).
+fn incidence(model: &Model<f32>) -> (Vec<u32>, Vec<u32>) {
+    let n = model.node_count();
+    let mut start = vec![0u32; n + 1];
+    for c in &model.contacts {
+        start[c.a as usize + 1] += 1;
+        start[c.b as usize + 1] += 1;
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut incident = vec![0u32; model.contacts.len() * 2];
+    for (k, c) in model.contacts.iter().enumerate() {
+        for (node, flag) in [(c.a, 0), (c.b, IS_B)] {
+            incident[fill[node as usize] as usize] = k as u32 | flag;
+            fill[node as usize] += 1;
+        }
+    }
+    (start, incident)
+}
+
+impl Wgpu {
+    /// Check that a buffer of `bytes` fits one binding.
+    fn check_fits(&self, what: &'static str, bytes: u64) -> Result<(), BackendError> {
+        let limits = &self.gpu.limits;
+        let (limit, limit_name) = if limits.max_storage_buffer_binding_size < limits.max_buffer_size {
+            (limits.max_storage_buffer_binding_size, "max_storage_buffer_binding_size")
+        } else {
+            (limits.max_buffer_size, "max_buffer_size")
+        };
+        if bytes > limit { Err(BackendError::TooLarge { what, needed: bytes, limit, limit_name }) } else { Ok(()) }
+    }
+
+    /// Check that `threads` fit one dispatch.
+    fn check_dispatch(&self, threads: usize) -> Result<(), BackendError> {
+        if u32::try_from(threads).ok().and_then(|t| self.gpu.groups(t)).is_some() {
+            return Ok(());
+        }
+        let max = u64::from(self.gpu.limits.max_compute_workgroups_per_dimension);
+        Err(BackendError::TooLarge {
+            what: "the dispatch (threads)",
+            needed: threads as u64,
+            limit: max * max * u64::from(WORKGROUP),
+            limit_name: "max_compute_workgroups_per_dimension",
+        })
+    }
+
+    fn bind(&self, layout: &wgpu::BindGroupLayout, label: &str, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+        let entries: Vec<_> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+            .collect();
+        self.gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
+    }
+
+    /// The bind groups of every pass for every parity.
+    fn bind_all(&self, b: &Buffers) -> Groups {
+        let k = &self.gpu.kernels;
+        let (x, v) = (&b.x, &b.v);
+        let table = |f: &dyn Fn(usize, usize) -> wgpu::BindGroup| [[f(0, 0), f(0, 1)], [f(1, 0), f(1, 1)]];
+        // The gather and fixed passes differ only in their last two buffers.
+        let (layout, t0, t1) = match self.mode {
+            Mode::Gather => (&k.gather.layout, &b.start, &b.incident),
+            Mode::FixedPointAtomic => (&k.fixed.layout, &b.acc, &b.overflow),
+        };
+        Groups {
+            step: table(&|px, pv| {
+                self.bind(layout, "step", &[&b.params, &x[px], &v[pv], &x[1 - px], &b.chain, &b.contacts, t0, t1])
+            }),
+            probe: table(&|px, pv| {
+                self.bind(layout, "forces", &[&b.params, &x[px], &v[pv], &b.forces, &b.chain, &b.contacts, t0, t1])
+            }),
+            friction: table(&|px, pv| {
+                let buffers = [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.contacts, &b.start, &b.incident];
+                self.bind(&k.friction.layout, "friction", &buffers)
+            }),
+            pins: table(&|px, pv| self.bind(&k.pins.layout, "pins", &[&b.params, &x[px], &v[pv], &b.pins])),
+        }
+    }
+
+    /// Upload the model's pins and parameters, and rebind.
+    fn upload_pins(&self, l: &mut Loaded) {
+        let pins: Vec<GpuPin> =
+            l.model.pins.iter().map(|&(node, target)| GpuPin { goal: [target.x, target.y, target.z], node }).collect();
+        l.buffers.pin_count = pins.len() as u32;
+        l.buffers.pins = storage(&self.gpu.device, "pins", &pins);
+        l.groups = self.bind_all(&l.buffers);
+        self.write_params(l);
+    }
+
+    fn write_params(&self, l: &Loaded) {
+        self.gpu.queue.write_buffer(&l.buffers.params, 0, bytemuck::bytes_of(&l.gpu_params()));
+    }
+
+    /// Record one substep into `pass`, flipping the parities.
+    fn record_substep(&self, l: &mut Loaded, pass: &mut wgpu::ComputePass<'_>) {
+        let k = &self.gpu.kernels;
+        let groups = |threads: usize| self.gpu.groups(threads as u32).unwrap_or((1, 1));
+        let nodes = groups(l.model.node_count());
+        let step = match self.mode {
+            Mode::Gather => &k.gather.entries[0],
+            Mode::FixedPointAtomic => {
+                let (gx, gy) = groups(l.model.node_count().max(l.model.contacts.len()));
+                pass.set_pipeline(&k.fixed.entries[0]);
+                pass.set_bind_group(0, &l.groups.step[l.px][l.pv], &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+                &k.fixed.entries[1]
+            }
+        };
+        pass.set_pipeline(step);
+        pass.set_bind_group(0, &l.groups.step[l.px][l.pv], &[]);
+        pass.dispatch_workgroups(nodes.0, nodes.1, 1);
+        if l.model.coeffs.friction > 0.0 {
+            pass.set_pipeline(&k.friction.entries[0]);
+            pass.set_bind_group(0, &l.groups.friction[l.px][l.pv], &[]);
+            pass.dispatch_workgroups(nodes.0, nodes.1, 1);
+            l.pv = 1 - l.pv;
+        }
+        l.px = 1 - l.px;
+        if l.buffers.pin_count > 0 {
+            let (gx, gy) = groups(l.buffers.pin_count as usize);
+            pass.set_pipeline(&k.pins.entries[0]);
+            pass.set_bind_group(0, &l.groups.pins[l.px][l.pv], &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+    }
+
+    fn advance_loaded(&self, l: &mut Loaded, substeps: u64) -> Result<(), BackendError> {
+        let (px, pv, first) = (l.px, l.pv, l.substeps);
+        let device = &self.gpu.device;
+        let mut encoder = device.create_command_encoder(&Default::default());
+        // Fixed point can fail mid-batch: keep the state it started from.
+        let snapshot = (self.mode == Mode::FixedPointAtomic).then(|| {
+            [&l.buffers.x[px], &l.buffers.v[pv]].map(|from| {
+                let to = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("snapshot"),
+                    size: from.size(),
+                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                });
+                encoder.copy_buffer_to_buffer(from, 0, &to, 0, from.size());
+                to
+            })
+        });
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            for _ in 0..substeps {
+                self.record_substep(l, &mut pass);
+            }
+        }
+        self.gpu.queue.submit([encoder.finish()]);
+        l.substeps += substeps;
+        let result = self.check_overflow(l, first, l.substeps);
+        if let (Err(BackendError::Overflow { .. }), Some([x, v])) = (&result, snapshot) {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            encoder.copy_buffer_to_buffer(&x, 0, &l.buffers.x[px], 0, x.size());
+            encoder.copy_buffer_to_buffer(&v, 0, &l.buffers.v[pv], 0, v.size());
+            self.gpu.queue.submit([encoder.finish()]);
+            (l.px, l.pv, l.substeps) = (px, pv, first);
+            self.finish()?;
+        }
+        result
+    }
+
+    /// Wait for the GPU; in fixed-point mode, read and clear the overflow
+    /// flag and report it for substeps `first..end`.
+    fn check_overflow(&self, l: &Loaded, first: u64, end: u64) -> Result<(), BackendError> {
+        self.finish()?;
+        if self.mode != Mode::FixedPointAtomic {
+            return Ok(());
+        }
+        let flag = self.read(&l.buffers.overflow, 4)?;
+        if flag.iter().any(|&b| b != 0) {
+            self.gpu.queue.write_buffer(&l.buffers.overflow, 0, &[0u8; 4]);
+            return Err(BackendError::Overflow { first, end, max_force: max_force() });
+        }
+        Ok(())
+    }
+}
+
+impl Backend for Wgpu {
+    type Real = f32;
+
+    fn name(&self) -> String {
+        format!("wgpu-{}", self.mode.name())
+    }
+
+    fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError> {
+        let model = Model::<f32>::new(fabric, params)?;
+        let n = model.node_count();
+        let contacts = model.contacts.len();
+        self.check_fits("the node buffer (bytes)", n as u64 * 16)?;
+        self.check_fits("the contact buffer (bytes)", contacts as u64 * 16)?;
+        self.check_dispatch(n.max(contacts))?;
+        let (start, incident) = incidence(&model);
+        let device = &self.gpu.device;
+        let state = State::<f32>::at_rest(fabric);
+        let (x, v) = (vec4s(&state.positions), vec4s(&state.velocities));
+        let buffers = Buffers {
+            params: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("params"),
+                size: std::mem::size_of::<GpuParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            x: [storage(device, "x0", &x), storage(device, "x1", &x)],
+            v: [storage(device, "v0", &v), storage(device, "v1", &v)],
+            forces: storage(device, "forces", &v),
+            chain: storage(device, "chain", &chain(&model)),
+            contacts: storage(device, "contacts", &gpu_contacts(&model)),
+            start: storage(device, "start", &start),
+            incident: storage(device, "incident", &incident),
+            pins: storage(device, "pins", &[0u32; 4]),
+            pin_count: 0,
+            acc: storage(device, "accumulators", &vec![0i32; 3 * n]),
+            overflow: storage(device, "overflow", &[0u32; 4]),
+        };
+        let groups = self.bind_all(&buffers);
+        let mut loaded = Loaded { model, buffers, groups, px: 0, pv: 0, substeps: 0 };
+        self.upload_pins(&mut loaded);
+        self.loaded = Some(loaded);
+        self.finish()
+    }
+
+    fn set_params(&mut self, params: &Params) -> Result<(), BackendError> {
+        self.loaded()?.model.set_params(params)?;
+        let loaded = self.loaded.as_ref().ok_or(BackendError::NotLoaded)?;
+        self.write_params(loaded);
+        self.gpu.queue.write_buffer(&loaded.buffers.chain, 0, bytemuck::cast_slice(&chain(&loaded.model)));
+        Ok(())
+    }
+
+    fn set_pins(&mut self, pins: &[Pin]) -> Result<(), BackendError> {
+        let mut loaded = self.loaded.take().ok_or(BackendError::NotLoaded)?;
+        let result = loaded.model.set_pins(pins);
+        if result.is_ok() {
+            self.upload_pins(&mut loaded);
+        }
+        self.loaded = Some(loaded);
+        result
+    }
+
+    fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
+        self.loaded()?.model.set_contacts_alive(alive)?;
+        let loaded = self.loaded.as_ref().ok_or(BackendError::NotLoaded)?;
+        self.gpu.queue.write_buffer(&loaded.buffers.contacts, 0, bytemuck::cast_slice(&gpu_contacts(&loaded.model)));
+        Ok(())
+    }
+
+    fn write_state(&mut self, state: &State<f32>) -> Result<(), BackendError> {
+        let loaded = self.loaded.as_ref().ok_or(BackendError::NotLoaded)?;
+        state.check_len(loaded.model.node_count())?;
+        let queue = &self.gpu.queue;
+        queue.write_buffer(&loaded.buffers.x[loaded.px], 0, bytemuck::cast_slice(&vec4s(&state.positions)));
+        queue.write_buffer(&loaded.buffers.v[loaded.pv], 0, bytemuck::cast_slice(&vec4s(&state.velocities)));
+        Ok(())
+    }
+
+    fn read_state(&mut self, state: &mut State<f32>) -> Result<(), BackendError> {
+        let loaded = self.loaded.as_ref().ok_or(BackendError::NotLoaded)?;
+        let n = loaded.model.node_count();
+        self.read_vectors(&loaded.buffers.x[loaded.px], n, &mut state.positions)?;
+        self.read_vectors(&loaded.buffers.v[loaded.pv], n, &mut state.velocities)
+    }
+
+    fn compute_forces(&mut self, forces: &mut Vec<V3<f32>>) -> Result<(), BackendError> {
+        let loaded = self.loaded.as_ref().ok_or(BackendError::NotLoaded)?;
+        let k = &self.gpu.kernels;
+        let n = loaded.model.node_count();
+        let groups = |threads: usize| self.gpu.groups(threads as u32).unwrap_or((1, 1));
+        let bind = &loaded.groups.probe[loaded.px][loaded.pv];
+        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            let probe = match self.mode {
+                Mode::Gather => &k.gather.entries[1],
+                Mode::FixedPointAtomic => {
+                    let (gx, gy) = groups(n.max(loaded.model.contacts.len()));
+                    pass.set_pipeline(&k.fixed.entries[0]);
+                    pass.set_bind_group(0, bind, &[]);
+                    pass.dispatch_workgroups(gx, gy, 1);
+                    &k.fixed.entries[2]
+                }
+            };
+            let (gx, gy) = groups(n);
+            pass.set_pipeline(probe);
+            pass.set_bind_group(0, bind, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        self.gpu.queue.submit([encoder.finish()]);
+        self.check_overflow(loaded, loaded.substeps, loaded.substeps)?;
+        self.read_vectors(&loaded.buffers.forces, n, forces)
+    }
+
+    fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
+        let mut loaded = self.loaded.take().ok_or(BackendError::NotLoaded)?;
+        let result = self.advance_loaded(&mut loaded, substeps);
+        self.loaded = Some(loaded);
+        result
+    }
+}

@@ -1,0 +1,93 @@
+//! The GPU backend's own behaviour on a real adapter: refusals, the
+//! fixed-point overflow report and restore. Agreement with the CPU is the
+//! conformance suite's job (`yarn-gate/tests/conformance.rs`).
+
+use std::sync::{Arc, OnceLock};
+
+use yarn_backend_wgpu::{Gpu, Mode, Wgpu};
+use yarn_model::{Backend, BackendError, Params, State, V3};
+use yarn_topology::{Chart, Fabric, Geometry};
+
+/// The shared GPU, or `None` (said loudly) when there is no adapter and
+/// `CI` is unset. Under CI a missing adapter fails the tests.
+fn gpu() -> Option<Arc<Gpu>> {
+    static GPU: OnceLock<Option<Arc<Gpu>>> = OnceLock::new();
+    GPU.get_or_init(|| match Gpu::new() {
+        Ok(gpu) => Some(gpu),
+        Err(e) if std::env::var_os("CI").is_none() => {
+            eprintln!("SKIPPING GPU test: {e}");
+            None
+        }
+        Err(e) => panic!("CI is set, so the GPU tests must run, but: {e}"),
+    })
+    .clone()
+}
+
+fn patch() -> Fabric {
+    Fabric::from_chart(&Chart::stockinette(3, 3).expect("valid size"), &Geometry::default()).expect("valid chart")
+}
+
+#[test]
+fn fixed_point_overflow_is_reported_and_the_state_kept() {
+    let Some(gpu) = gpu() else { return };
+    let fabric = patch();
+    let mut backend = Wgpu::with_gpu(gpu, Mode::FixedPointAtomic);
+    backend.load(&fabric, &Params::default()).unwrap();
+    backend.advance(5).unwrap();
+    // One node thrown 10^4 radii away: its springs pull with about 8e6,
+    // far past what i32 quanta of 1/4096 hold.
+    let mut wild = backend.state().unwrap();
+    wild.positions[10] += V3::new(1e4, 0.0, 0.0);
+    backend.write_state(&wild).unwrap();
+    match backend.advance(10) {
+        Err(BackendError::Overflow { first, end, max_force }) => {
+            assert_eq!((first, end), (5, 15));
+            assert!(max_force > 1e5 && max_force < 1e6, "{max_force}");
+        }
+        other => panic!("expected an overflow, got {other:?}"),
+    }
+    assert_eq!(backend.state().unwrap(), wild, "the failing call must leave the state it started from");
+    // Back to a sane state, stepping works again.
+    backend.write_state(&State::at_rest(&fabric)).unwrap();
+    backend.advance(10).unwrap();
+}
+
+#[test]
+fn gather_has_no_quantum_to_overflow() {
+    let Some(gpu) = gpu() else { return };
+    let fabric = patch();
+    let mut backend = Wgpu::with_gpu(gpu, Mode::Gather);
+    backend.load(&fabric, &Params::default()).unwrap();
+    let mut wild = State::at_rest(&fabric);
+    wild.positions[10] += V3::new(1e4, 0.0, 0.0);
+    backend.write_state(&wild).unwrap();
+    let forces = backend.forces().unwrap();
+    assert!(forces[10].norm() > 1e6, "the spring pulls back hard: {}", forces[10].norm());
+    backend.advance(1).unwrap();
+    assert!(backend.state().unwrap().positions.iter().all(|p| p.iter().all(|c| c.is_finite())));
+}
+
+#[test]
+fn refusals_name_the_problem_and_keep_the_state() {
+    let Some(gpu) = gpu() else { return };
+    let mut backend = Wgpu::with_gpu(gpu, Mode::Gather);
+    assert_eq!(backend.advance(1), Err(BackendError::NotLoaded));
+    let fabric = patch();
+    backend.load(&fabric, &Params::default()).unwrap();
+    backend.advance(3).unwrap();
+    let before = backend.state().unwrap();
+    let short = State { positions: vec![V3::zeros(); 2], velocities: vec![V3::zeros(); 2] };
+    assert!(matches!(backend.write_state(&short), Err(BackendError::LengthMismatch { what: "positions", .. })));
+    assert!(backend.set_contacts_alive(&[true]).is_err());
+    assert!(backend.set_params(&Params { substep: 1.0, ..Params::default() }).is_err());
+    let bad_pin = yarn_topology::Pin { node: 10_000, target: yarn_topology::Vec3::zeros() };
+    assert!(backend.set_pins(&[bad_pin]).is_err());
+    assert_eq!(backend.state().unwrap(), before);
+    // Pins that are valid hold.
+    let target = yarn_topology::Vec3::new(1.0, 2.0, 3.0);
+    backend.set_pins(&[yarn_topology::Pin { node: 4, target }]).unwrap();
+    backend.advance(20).unwrap();
+    let state = backend.state().unwrap();
+    assert_eq!(state.positions[4], V3::new(1.0, 2.0, 3.0));
+    assert_eq!(state.velocities[4], V3::zeros());
+}

@@ -1,0 +1,137 @@
+//! `gpucheck`: the GPU backend against `Serial<f32>` on the chosen adapter,
+//! for each accumulation mode: the force field after one accumulation and
+//! a 120-substep trajectory of the gate's patch.
+
+use std::sync::Arc;
+
+use serde::Serialize;
+use yarn_backend_cpu::Serial;
+use yarn_backend_wgpu::{FIXED_POINT_SCALE, Gpu, Mode, Wgpu};
+use yarn_model::{Backend, Params, V3, widen};
+use yarn_topology::{Chart, Fabric, Geometry};
+
+use crate::GateError;
+use crate::conformance::TRAJECTORY_STEPS;
+
+/// Gather's force error bound, relative to the largest force: the same
+/// sums in the same order as `Serial`, so only the GPU's own `sqrt` and
+/// division rounding remain.
+pub const GATHER_FORCE: f64 = 1e-5;
+/// Gather's trajectory bound after [`TRAJECTORY_STEPS`], in yarn radii.
+pub const GATHER_TRAJECTORY: f64 = 1e-4;
+/// Fixed point's force error bound, absolute: half a quantum 1/S for each
+/// of up to 16 contributions to a node, plus [`GATHER_FORCE`] of the
+/// largest force for f32 rounding.
+pub const FIXED_POINT_QUANTA: f64 = 16.0 * 0.5 / FIXED_POINT_SCALE as f64;
+/// Fixed point's trajectory bound, in yarn radii: quantisation noise of
+/// about 1e-3 per force, integrated over 120 substeps.
+pub const FIXED_POINT_TRAJECTORY: f64 = 1e-2;
+
+/// One mode's agreement with `Serial<f32>`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModeReport {
+    /// `"gather"` or `"fixed"`.
+    pub mode: &'static str,
+    /// Largest per-node force difference.
+    pub force_max_err: f64,
+    /// The same over the largest reference force.
+    pub force_rel_err: f64,
+    /// Largest position difference after the trajectory, in yarn radii.
+    pub trajectory_max_err: f64,
+    /// The bounds this mode was held to: force (relative), trajectory (r).
+    pub force_bound: f64,
+    /// See `force_bound`.
+    pub trajectory_bound: f64,
+    /// Both within bounds.
+    pub pass: bool,
+}
+
+/// The whole check.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GpuCheckReport {
+    /// The adapter's name and API.
+    pub adapter: String,
+    /// Patch size in stitches.
+    pub size: String,
+    /// Nodes in the patch.
+    pub nodes: usize,
+    /// One report per mode.
+    pub modes: Vec<ModeReport>,
+    /// Every mode passes.
+    pub pass: bool,
+}
+
+fn max_diff(a: &[V3<f32>], b: &[V3<f32>]) -> f64 {
+    a.iter().zip(b).map(|(p, q)| (widen(p) - widen(q)).norm()).fold(0.0, f64::max)
+}
+
+/// Run the check on `gpu` with a `width`×`height` patch under the gate's
+/// parameters.
+///
+/// # Errors
+/// When the patch cannot be built or a backend fails.
+pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCheckReport, GateError> {
+    let fabric = Fabric::from_chart(&Chart::stockinette(width, height)?, &Geometry::default())?;
+    let params = Params::gate();
+    let mut reference = Serial::<f32>::new();
+    reference.load(&fabric, &params)?;
+    let want_forces = reference.forces()?;
+    reference.advance(TRAJECTORY_STEPS)?;
+    let want = reference.state()?;
+    let largest = want_forces.iter().map(|f| widen(f).norm()).fold(0.0, f64::max).max(1.0);
+    let r = fabric.yarn_radius();
+    let mut modes = Vec::new();
+    for mode in [Mode::Gather, Mode::FixedPointAtomic] {
+        let mut backend = Wgpu::with_gpu(Arc::clone(gpu), mode);
+        backend.load(&fabric, &params)?;
+        let force_max_err = max_diff(&backend.forces()?, &want_forces);
+        backend.advance(TRAJECTORY_STEPS)?;
+        let trajectory_max_err = max_diff(&backend.state()?.positions, &want.positions) / r;
+        let (force_bound, trajectory_bound) = match mode {
+            Mode::Gather => (GATHER_FORCE, GATHER_TRAJECTORY),
+            Mode::FixedPointAtomic => (GATHER_FORCE + FIXED_POINT_QUANTA / largest, FIXED_POINT_TRAJECTORY),
+        };
+        let force_rel_err = force_max_err / largest;
+        modes.push(ModeReport {
+            mode: mode.name(),
+            force_max_err,
+            force_rel_err,
+            trajectory_max_err,
+            force_bound,
+            trajectory_bound,
+            pass: force_rel_err <= force_bound && trajectory_max_err <= trajectory_bound,
+        });
+    }
+    Ok(GpuCheckReport {
+        adapter: gpu.adapter(),
+        size: format!("{width}x{height}"),
+        nodes: fabric.node_count(),
+        pass: modes.iter().all(|m| m.pass),
+        modes,
+    })
+}
+
+impl GpuCheckReport {
+    /// A plain-text table of the report.
+    pub fn table(&self) -> String {
+        let mut out = format!("adapter: {}\npatch: {} ({} nodes)\n\n", self.adapter, self.size, self.nodes);
+        out += &format!(
+            "{:<8} {:>14} {:>14} {:>12} {:>18} {:>12}  verdict\n",
+            "mode", "force max err", "force rel err", "(bound)", "trajectory err r", "(bound)"
+        );
+        for m in &self.modes {
+            out += &format!(
+                "{:<8} {:>14.3e} {:>14.3e} {:>12.1e} {:>18.3e} {:>12.1e}  {}\n",
+                m.mode,
+                m.force_max_err,
+                m.force_rel_err,
+                m.force_bound,
+                m.trajectory_max_err,
+                m.trajectory_bound,
+                if m.pass { "PASS" } else { "FAIL" }
+            );
+        }
+        out += if self.pass { "\nPASS: the GPU matches Serial f32\n" } else { "\nFAIL\n" };
+        out
+    }
+}
