@@ -19,16 +19,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     if i >= p.nodes {
         return;
     }
-    var dv = vec3<f32>(0.0);
-    for (var e = start[i]; e < start[i + 1u]; e++) {
-        let entry = incident[e];
-        let c = contacts[entry & ~IS_B];
-        if c.alive != 0u {
-            let dw = friction_change(x[c.b].xyz - x[c.a].xyz, v[c.b].xyz - v[c.a].xyz, c.rest, p);
-            dv -= dw * select(0.5, -0.5, (entry & IS_B) != 0u);
-        }
-    }
-    let velocity = v[i].xyz + dv;
+    let velocity = v[i].xyz + node_friction(i);
     v_next[i] = vec4<f32>(velocity, 0.0);
     x_next[i] = vec4<f32>(x[i].xyz + velocity * p.h, 0.0);
 }

@@ -54,6 +54,8 @@ pub(crate) struct Kernels {
     pub(crate) fixed: Kernel<3>,
     pub(crate) friction: Kernel<1>,
     pub(crate) pins: Kernel<1>,
+    pub(crate) small: Kernel<1>,
+    pub(crate) fused: Kernel<1>,
 }
 
 /// A GPU device with yarnify's pipelines, shareable between backends.
@@ -136,6 +138,15 @@ impl Gpu {
                 ["main"],
             ),
             pins: build(&device, &shaders::PINS, &[Uniform, ReadWrite, ReadWrite, Read], ["main"]),
+            fused: build(
+                &device,
+                &shaders::FUSED,
+                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, Read, Read],
+                ["main"],
+            ),
+            small: build(&device, &shaders::SMALL, &[Uniform, ReadWrite, ReadWrite, Read, Read, Read, Read, Read], [
+                "main",
+            ]),
         };
         let limits = device.limits();
         let gpu = Self { device, queue, limits, info, errors, kernels };
@@ -146,6 +157,47 @@ impl Gpu {
     /// The adapter's name and backend, e.g. `"llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan)"`.
     pub fn adapter(&self) -> String {
         format!("{} ({:?})", self.info.name, self.info.backend)
+    }
+
+    /// The device-to-device copy rate in bytes per second, counting each
+    /// byte read and written: the median of `repeats` timed submissions of
+    /// eight copies of a `bytes`-sized buffer, after one untimed. The bandwidth a memory-bound
+    /// pass can hope for.
+    ///
+    /// # Errors
+    /// When the device fails.
+    pub fn copy_bandwidth(&self, bytes: u64, repeats: usize) -> Result<f64, String> {
+        let bytes = bytes.min(self.limits.max_buffer_size) / 4 * 4;
+        let buffer = |label| {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let (from, to) = (buffer("copy source"), buffer("copy target"));
+        let mut times = Vec::with_capacity(repeats);
+        // Several copies per submission, so the submission's own latency
+        // does not count as copying time.
+        const COPIES: u32 = 8;
+        for run in 0..=repeats {
+            let mut encoder = self.device.create_command_encoder(&Default::default());
+            for _ in 0..COPIES {
+                encoder.copy_buffer_to_buffer(&from, 0, &to, 0, bytes);
+            }
+            let start = std::time::Instant::now();
+            self.queue.submit([encoder.finish()]);
+            self.device
+                .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+                .map_err(|e| e.to_string())?;
+            self.take_error()?;
+            if run > 0 {
+                times.push(start.elapsed().as_secs_f64());
+            }
+        }
+        times.sort_by(f64::total_cmp);
+        Ok(2.0 * f64::from(COPIES) * bytes as f64 / times[times.len() / 2])
     }
 
     /// The first error the device reported since the last call, if any.

@@ -53,6 +53,12 @@ use yarn_topology::{Fabric, Pin};
 /// Threads per workgroup in every pass (`WORKGROUP` in the shaders).
 pub(crate) const WORKGROUP: u32 = 128;
 
+/// The small-fabric pass (`small.wgsl`): threads of its one workgroup,
+/// nodes per thread, and substeps per dispatch.
+const SMALL_THREADS: usize = 256;
+const SMALL_NODES: usize = 16;
+const SMALL_BATCH: u64 = 16;
+
 /// The fixed-point scale S of [`Mode::FixedPointAtomic`] (the paper's).
 pub const FIXED_POINT_SCALE: f32 = 4096.0;
 
@@ -83,6 +89,7 @@ impl Mode {
 pub struct Wgpu {
     gpu: Arc<Gpu>,
     mode: Mode,
+    small_pass: bool,
     loaded: Option<Loaded>,
 }
 
@@ -98,7 +105,16 @@ impl Wgpu {
     /// A backend on a shared GPU context: building one compiles every
     /// pipeline, so share it between backends.
     pub fn with_gpu(gpu: Arc<Gpu>, mode: Mode) -> Self {
-        Self { gpu, mode, loaded: None }
+        Self { gpu, mode, small_pass: true, loaded: None }
+    }
+
+    /// Whether gather mode may run fabrics of up to 4,096 nodes with its
+    /// small-fabric pass: 16 whole substeps per dispatch in one workgroup
+    /// (default: on). Off, every substep takes its two or three dispatches;
+    /// the results agree to float rounding.
+    pub fn small_pass(mut self, on: bool) -> Self {
+        self.small_pass = on;
+        self
     }
 
     /// The GPU context.
@@ -201,6 +217,8 @@ struct Groups {
     probe: [[wgpu::BindGroup; 2]; 2],
     friction: [[wgpu::BindGroup; 2]; 2],
     pins: [[wgpu::BindGroup; 2]; 2],
+    small: [[wgpu::BindGroup; 2]; 2],
+    fused: [[wgpu::BindGroup; 2]; 2],
 }
 
 impl Loaded {
@@ -353,6 +371,15 @@ impl Wgpu {
                 self.bind(&k.friction.layout, "friction", &buffers)
             }),
             pins: table(&|px, pv| self.bind(&k.pins.layout, "pins", &[&b.params, &x[px], &v[pv], &b.pins])),
+            fused: table(&|px, pv| {
+                let buffers =
+                    [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.chain, &b.contacts, &b.start, &b.incident];
+                self.bind(&k.fused.layout, "fused", &buffers)
+            }),
+            small: table(&|px, pv| {
+                let buffers = [&b.params, &x[px], &v[pv], &b.chain, &b.contacts, &b.start, &b.incident, &b.pins];
+                self.bind(&k.small.layout, "small", &buffers)
+            }),
         }
     }
 
@@ -375,7 +402,15 @@ impl Wgpu {
         let k = &self.gpu.kernels;
         let groups = |threads: usize| self.gpu.groups(threads as u32).unwrap_or((1, 1));
         let nodes = groups(l.model.node_count());
+        let friction = l.model.coeffs.friction > 0.0;
         let step = match self.mode {
+            Mode::Gather if friction => {
+                pass.set_pipeline(&k.fused.entries[0]);
+                pass.set_bind_group(0, &l.groups.fused[l.px][l.pv], &[]);
+                pass.dispatch_workgroups(nodes.0, nodes.1, 1);
+                (l.px, l.pv) = (1 - l.px, 1 - l.pv);
+                return self.record_pins(l, pass);
+            }
             Mode::Gather => &k.gather.entries[0],
             Mode::FixedPointAtomic => {
                 let (gx, gy) = groups(l.model.node_count().max(l.model.contacts.len()));
@@ -388,16 +423,20 @@ impl Wgpu {
         pass.set_pipeline(step);
         pass.set_bind_group(0, &l.groups.step[l.px][l.pv], &[]);
         pass.dispatch_workgroups(nodes.0, nodes.1, 1);
-        if l.model.coeffs.friction > 0.0 {
+        if friction {
             pass.set_pipeline(&k.friction.entries[0]);
             pass.set_bind_group(0, &l.groups.friction[l.px][l.pv], &[]);
             pass.dispatch_workgroups(nodes.0, nodes.1, 1);
             l.pv = 1 - l.pv;
         }
         l.px = 1 - l.px;
-        if l.buffers.pin_count > 0 {
-            let (gx, gy) = groups(l.buffers.pin_count as usize);
-            pass.set_pipeline(&k.pins.entries[0]);
+        self.record_pins(l, pass);
+    }
+
+    /// Record the pins pass, when there are pins.
+    fn record_pins(&self, l: &Loaded, pass: &mut wgpu::ComputePass<'_>) {
+        if let Some((gx, gy)) = (l.buffers.pin_count > 0).then(|| self.gpu.groups(l.buffers.pin_count)).flatten() {
+            pass.set_pipeline(&self.gpu.kernels.pins.entries[0]);
             pass.set_bind_group(0, &l.groups.pins[l.px][l.pv], &[]);
             pass.dispatch_workgroups(gx, gy, 1);
         }
@@ -422,7 +461,18 @@ impl Wgpu {
         });
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            for _ in 0..substeps {
+            let small = self.small_pass
+                && self.mode == Mode::Gather
+                && l.model.node_count() <= SMALL_THREADS * SMALL_NODES;
+            let batches = if small { substeps / SMALL_BATCH } else { 0 };
+            if batches > 0 {
+                pass.set_pipeline(&self.gpu.kernels.small.entries[0]);
+                pass.set_bind_group(0, &l.groups.small[l.px][l.pv], &[]);
+                for _ in 0..batches {
+                    pass.dispatch_workgroups(1, 1, 1);
+                }
+            }
+            for _ in 0..substeps - batches * SMALL_BATCH {
                 self.record_substep(l, &mut pass);
             }
         }

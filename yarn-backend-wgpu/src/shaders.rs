@@ -6,35 +6,58 @@
 /// element formulas.
 pub const COMMON: &str = include_str!("../shaders/common.wgsl");
 
-/// A pass's source, prelude first.
+/// One node's total force, for the passes that gather.
+pub const NODE_FORCE: &str = include_str!("../shaders/node_force.wgsl");
+/// One node's sum of friction changes.
+pub const NODE_FRICTION: &str = include_str!("../shaders/node_friction.wgsl");
+
+/// A pass: its own file, and the shared functions it calls.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Pass {
     /// The file name, for labels and messages.
     pub name: &'static str,
+    /// Shared functions it calls, in order, after the prelude.
+    pub uses: &'static [&'static str],
     /// The pass's own WGSL.
     pub body: &'static str,
 }
 
 impl Pass {
-    /// The full WGSL module: the prelude, then the pass.
+    /// The full WGSL module: the prelude, the shared functions, the pass.
     pub fn source(&self) -> String {
-        format!("{COMMON}\n{}", self.body)
+        let mut source = String::from(COMMON);
+        for part in self.uses.iter().chain([&self.body]) {
+            source.push('\n');
+            source.push_str(part);
+        }
+        source
     }
 }
 
 /// Gather mode's forces and damped velocity update (entry points `step`
 /// and `forces`).
-pub const GATHER: Pass = Pass { name: "gather.wgsl", body: include_str!("../shaders/gather.wgsl") };
+pub const GATHER: Pass =
+    Pass { name: "gather.wgsl", uses: &[NODE_FORCE], body: include_str!("../shaders/gather.wgsl") };
 /// Fixed-point mode's scatter, then its velocity update (entry points
 /// `scatter`, `step` and `forces`).
-pub const FIXED: Pass = Pass { name: "fixed.wgsl", body: include_str!("../shaders/fixed.wgsl") };
+pub const FIXED: Pass = Pass { name: "fixed.wgsl", uses: &[], body: include_str!("../shaders/fixed.wgsl") };
 /// Friction and the move, both modes (entry point `main`).
-pub const FRICTION: Pass = Pass { name: "friction.wgsl", body: include_str!("../shaders/friction.wgsl") };
+pub const FRICTION: Pass =
+    Pass { name: "friction.wgsl", uses: &[NODE_FRICTION], body: include_str!("../shaders/friction.wgsl") };
 /// Pins (entry point `main`).
-pub const PINS: Pass = Pass { name: "pins.wgsl", body: include_str!("../shaders/pins.wgsl") };
+pub const PINS: Pass = Pass { name: "pins.wgsl", uses: &[], body: include_str!("../shaders/pins.wgsl") };
+/// Gather mode's whole substep for small fabrics, several per dispatch
+/// (entry point `main`).
+pub const SMALL: Pass =
+    Pass { name: "small.wgsl", uses: &[NODE_FORCE, NODE_FRICTION], body: include_str!("../shaders/small.wgsl") };
+
+/// Gather mode's whole substep with friction, in one dispatch (entry
+/// point `main`).
+pub const FUSED: Pass =
+    Pass { name: "fused.wgsl", uses: &[NODE_FORCE], body: include_str!("../shaders/fused.wgsl") };
 
 /// Every pass, for validation.
-pub const ALL: [Pass; 4] = [GATHER, FIXED, FRICTION, PINS];
+pub const ALL: [Pass; 6] = [GATHER, FIXED, FRICTION, PINS, SMALL, FUSED];
 
 #[cfg(test)]
 pub(crate) mod tests {
@@ -61,7 +84,7 @@ pub(crate) mod tests {
 
     #[test]
     fn a_broken_pass_is_caught() {
-        let broken = Pass { name: "broken.wgsl", body: "fn f() -> f32 { return undefined_name; }" };
+        let broken = Pass { name: "broken.wgsl", uses: &[], body: "fn f() -> f32 { return undefined_name; }" };
         assert!(naga::front::wgsl::parse_str(&broken.source()).is_err());
     }
 }

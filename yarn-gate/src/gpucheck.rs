@@ -36,6 +36,10 @@ pub struct ModeReport {
     pub force_max_err: f64,
     /// The same over the largest reference force.
     pub force_rel_err: f64,
+    /// The force error against `Serial<f64>` instead, relative to its
+    /// largest force: how accurate the mode is, beside how close it is to
+    /// the CPU's own f32 rounding.
+    pub force_rel_err_vs_f64: f64,
     /// Largest position difference after the trajectory, in yarn radii.
     pub trajectory_max_err: f64,
     /// The bounds this mode was held to: force (relative), trajectory (r).
@@ -55,6 +59,9 @@ pub struct GpuCheckReport {
     pub size: String,
     /// Nodes in the patch.
     pub nodes: usize,
+    /// `Serial<f32>`'s own force error against `Serial<f64>`, relative to
+    /// the largest force: the f32 rounding any f32 backend is bound by.
+    pub serial_f32_force_rel_err_vs_f64: f64,
     /// One report per mode.
     pub modes: Vec<ModeReport>,
     /// Every mode passes.
@@ -63,6 +70,10 @@ pub struct GpuCheckReport {
 
 fn max_diff(a: &[V3<f32>], b: &[V3<f32>]) -> f64 {
     a.iter().zip(b).map(|(p, q)| (widen(p) - widen(q)).norm()).fold(0.0, f64::max)
+}
+
+fn max_diff_f64(a: &[V3<f32>], b: &[V3<f64>]) -> f64 {
+    a.iter().zip(b).map(|(p, q)| (widen(p) - q).norm()).fold(0.0, f64::max)
 }
 
 /// Run the check on `gpu` with a `width`×`height` patch under the gate's
@@ -79,12 +90,18 @@ pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCh
     reference.advance(TRAJECTORY_STEPS)?;
     let want = reference.state()?;
     let largest = want_forces.iter().map(|f| widen(f).norm()).fold(0.0, f64::max).max(1.0);
+    let mut truth = Serial::<f64>::new();
+    truth.load(&fabric, &params)?;
+    let true_forces = truth.forces()?;
+    let true_largest = true_forces.iter().map(|f| f.norm()).fold(0.0, f64::max).max(1.0);
     let r = fabric.yarn_radius();
     let mut modes = Vec::new();
     for mode in [Mode::Gather, Mode::FixedPointAtomic] {
         let mut backend = Wgpu::with_gpu(Arc::clone(gpu), mode);
         backend.load(&fabric, &params)?;
-        let force_max_err = max_diff(&backend.forces()?, &want_forces);
+        let forces = backend.forces()?;
+        let force_max_err = max_diff(&forces, &want_forces);
+        let force_rel_err_vs_f64 = max_diff_f64(&forces, &true_forces) / true_largest;
         backend.advance(TRAJECTORY_STEPS)?;
         let trajectory_max_err = max_diff(&backend.state()?.positions, &want.positions) / r;
         let (force_bound, trajectory_bound) = match mode {
@@ -96,6 +113,7 @@ pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCh
             mode: mode.name(),
             force_max_err,
             force_rel_err,
+            force_rel_err_vs_f64,
             trajectory_max_err,
             force_bound,
             trajectory_bound,
@@ -106,6 +124,7 @@ pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCh
         adapter: gpu.adapter(),
         size: format!("{width}x{height}"),
         nodes: fabric.node_count(),
+        serial_f32_force_rel_err_vs_f64: max_diff_f64(&want_forces, &true_forces) / true_largest,
         pass: modes.iter().all(|m| m.pass),
         modes,
     })
@@ -114,18 +133,22 @@ pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCh
 impl GpuCheckReport {
     /// A plain-text table of the report.
     pub fn table(&self) -> String {
-        let mut out = format!("adapter: {}\npatch: {} ({} nodes)\n\n", self.adapter, self.size, self.nodes);
+        let mut out = format!(
+            "adapter: {}\npatch: {} ({} nodes); Serial f32 force rel err vs f64: {:.3e}\n\n",
+            self.adapter, self.size, self.nodes, self.serial_f32_force_rel_err_vs_f64
+        );
         out += &format!(
-            "{:<8} {:>14} {:>14} {:>12} {:>18} {:>12}  verdict\n",
-            "mode", "force max err", "force rel err", "(bound)", "trajectory err r", "(bound)"
+            "{:<8} {:>14} {:>14} {:>12} {:>12} {:>18} {:>12}  verdict\n",
+            "mode", "force max err", "force rel err", "(bound)", "vs f64", "trajectory err r", "(bound)"
         );
         for m in &self.modes {
             out += &format!(
-                "{:<8} {:>14.3e} {:>14.3e} {:>12.1e} {:>18.3e} {:>12.1e}  {}\n",
+                "{:<8} {:>14.3e} {:>14.3e} {:>12.1e} {:>12.3e} {:>18.3e} {:>12.1e}  {}\n",
                 m.mode,
                 m.force_max_err,
                 m.force_rel_err,
                 m.force_bound,
+                m.force_rel_err_vs_f64,
                 m.trajectory_max_err,
                 m.trajectory_bound,
                 if m.pass { "PASS" } else { "FAIL" }

@@ -198,6 +198,17 @@ fn main() -> ExitCode {
         }
         Command::Bench(args) => match run_bench(&args) {
             Ok(rows) => {
+                if args.backend.iter().any(|b| b.starts_with("wgpu")) {
+                    // The memory-bound ceiling, measured in the same run.
+                    match Gpu::new().map_err(|e| e.to_string()).and_then(|gpu| {
+                        Ok((gpu.adapter(), gpu.copy_bandwidth(1 << 30, 9)?))
+                    }) {
+                        Ok((adapter, rate)) => {
+                            eprintln!("{adapter}: device copy {:.0} GB/s (read + write, 1 GiB buffer)", rate / 1e9)
+                        }
+                        Err(e) => eprintln!("copy bandwidth not measured: {e}"),
+                    }
+                }
                 if args.json {
                     println!("{}", serde_json::to_string_pretty(&rows).expect("rows serialise"));
                 } else {
