@@ -41,9 +41,6 @@ struct Pin {
 
 const WORKGROUP: u32 = 128u;
 const FRICTION_ON: u32 = 1u;
-// An `incident` entry holds a contact index, with this bit set when the
-// node is the contact's `b`.
-const IS_B: u32 = 0x80000000u;
 
 // The global thread index of a dispatch that may be two-dimensional (a
 // fabric with more workgroups than one dimension allows).

@@ -11,9 +11,8 @@
 @group(0) @binding(3) var<storage, read_write> x_next: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> v_next: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read> chain: array<vec2<f32>>;
-@group(0) @binding(6) var<storage, read> contacts: array<Contact>;
-@group(0) @binding(7) var<storage, read> start: array<u32>;
-@group(0) @binding(8) var<storage, read> incident: array<u32>;
+@group(0) @binding(6) var<storage, read> start: array<u32>;
+@group(0) @binding(7) var<storage, read> incident: array<Contact>;
 
 // v* of node j (step 2).
 fn velocity_star(j: u32) -> vec3<f32> {
@@ -31,10 +30,9 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     // As `node_friction`, with each partner's v* recomputed.
     var dv = vec3<f32>(0.0);
     for (var e = start[i]; e < start[i + 1u]; e++) {
-        let entry = incident[e];
-        let c = contacts[entry & ~IS_B];
+        let c = incident[e];
         if c.alive != 0u {
-            let is_b = (entry & IS_B) != 0u;
+            let is_b = c.b == i;
             let other = velocity_star(select(c.b, c.a, is_b));
             let w = select(other - own, own - other, is_b);
             let dw = friction_change(x[c.b].xyz - x[c.a].xyz, w, c.rest, p);

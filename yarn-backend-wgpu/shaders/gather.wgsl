@@ -9,9 +9,8 @@
 // Per node i: the rest length of segment i and κθ0 of joint i (zero past
 // the ends).
 @group(0) @binding(4) var<storage, read> chain: array<vec2<f32>>;
-@group(0) @binding(5) var<storage, read> contacts: array<Contact>;
-@group(0) @binding(6) var<storage, read> start: array<u32>;
-@group(0) @binding(7) var<storage, read> incident: array<u32>;
+@group(0) @binding(5) var<storage, read> start: array<u32>;
+@group(0) @binding(6) var<storage, read> incident: array<Contact>;
 
 @compute @workgroup_size(WORKGROUP)
 fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,

@@ -1,7 +1,9 @@
 // The total force on one node (SPEC §4 step 1) as the gather computes it:
 // its own segments, joints and contacts, recomputing the elements it shares
 // with its neighbours, summed in the CPU kernel's order. Used by the passes
-// that declare `p`, `x`, `chain`, `contacts`, `start` and `incident`.
+// that declare `p`, `x`, `chain`, `start` and `incident`: each node's
+// contacts, copied out in contact order so one load brings the whole
+// record.
 
 struct Stretched {
     segment: Segment,
@@ -36,11 +38,10 @@ fn node_force(node: u32) -> vec3<f32> {
     let j2 = joint(i, s2.segment, s3.segment);
     var f = vec3<f32>(0.0, p.gravity_y, 0.0) + s2.force - s1.force + j2.first - (j1.first + j1.last) + j0.last;
     for (var e = start[node]; e < start[node + 1u]; e++) {
-        let entry = incident[e];
-        let c = contacts[entry & ~IS_B];
+        let c = incident[e];
         if c.alive != 0u {
             let force = spring_force(x[c.b].xyz - x[c.a].xyz, c.rest, p.contact);
-            f += select(force, -force, (entry & IS_B) != 0u);
+            f += select(force, -force, c.b == node);
         }
     }
     return f;

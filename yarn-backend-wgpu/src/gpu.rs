@@ -54,7 +54,6 @@ pub(crate) struct Kernels {
     pub(crate) fixed: Kernel<3>,
     pub(crate) friction: Kernel<1>,
     pub(crate) pins: Kernel<1>,
-    pub(crate) small: Kernel<1>,
     pub(crate) fused: Kernel<1>,
 }
 
@@ -122,7 +121,7 @@ impl Gpu {
             gather: build(
                 &device,
                 &shaders::GATHER,
-                &[Uniform, Read, ReadWrite, ReadWrite, Read, Read, Read, Read],
+                &[Uniform, Read, ReadWrite, ReadWrite, Read, Read, Read],
                 ["step", "forces"],
             ),
             fixed: build(
@@ -134,19 +133,16 @@ impl Gpu {
             friction: build(
                 &device,
                 &shaders::FRICTION,
-                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, Read],
+                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read],
                 ["main"],
             ),
             pins: build(&device, &shaders::PINS, &[Uniform, ReadWrite, ReadWrite, Read], ["main"]),
             fused: build(
                 &device,
                 &shaders::FUSED,
-                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, Read, Read],
+                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, Read],
                 ["main"],
             ),
-            small: build(&device, &shaders::SMALL, &[Uniform, ReadWrite, ReadWrite, Read, Read, Read, Read, Read], [
-                "main",
-            ]),
         };
         let limits = device.limits();
         let gpu = Self { device, queue, limits, info, errors, kernels };
@@ -159,32 +155,52 @@ impl Gpu {
         format!("{} ({:?})", self.info.name, self.info.backend)
     }
 
-    /// The device-to-device copy rate in bytes per second, counting each
-    /// byte read and written: the median of `repeats` timed submissions of
-    /// eight copies of a `bytes`-sized buffer, after one untimed. The bandwidth a memory-bound
-    /// pass can hope for.
+    /// The memory bandwidth a pass reaches on this device, in bytes per
+    /// second counting each byte read and written: the median of `repeats`
+    /// timed submissions of eight copies of a `bytes`-sized buffer by a
+    /// compute pass (`copy.wgsl`), after one untimed. The ceiling for the
+    /// memory-bound passes. Returns the buffer size used (`bytes`, capped by
+    /// the binding limit) and the rate.
     ///
     /// # Errors
     /// When the device fails.
-    pub fn copy_bandwidth(&self, bytes: u64, repeats: usize) -> Result<f64, String> {
-        let bytes = bytes.min(self.limits.max_buffer_size) / 4 * 4;
+    pub fn copy_bandwidth(&self, bytes: u64, repeats: usize) -> Result<(u64, f64), String> {
+        let limit = self.limits.max_storage_buffer_binding_size.min(self.limits.max_buffer_size);
+        let elements = (bytes.min(limit) / 16).min(u64::from(u32::MAX)) as u32;
+        let bytes = u64::from(elements) * 16;
         let buffer = |label| {
             self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size: bytes,
-                usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                usage: wgpu::BufferUsages::STORAGE,
                 mapped_at_creation: false,
             })
         };
         let (from, to) = (buffer("copy source"), buffer("copy target"));
+        let copy = build(&self.device, &shaders::COPY, &[Slot::Read, Slot::ReadWrite], ["main"]);
+        let entries = [&from, &to].map(|b| b.as_entire_binding());
+        let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("copy"),
+            layout: &copy.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: entries[0].clone() },
+                wgpu::BindGroupEntry { binding: 1, resource: entries[1].clone() },
+            ],
+        });
+        let (gx, gy) = self.groups(elements).ok_or("the copy buffer is too large to dispatch")?;
         let mut times = Vec::with_capacity(repeats);
         // Several copies per submission, so the submission's own latency
         // does not count as copying time.
         const COPIES: u32 = 8;
         for run in 0..=repeats {
             let mut encoder = self.device.create_command_encoder(&Default::default());
-            for _ in 0..COPIES {
-                encoder.copy_buffer_to_buffer(&from, 0, &to, 0, bytes);
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&copy.entries[0]);
+                pass.set_bind_group(0, &group, &[]);
+                for _ in 0..COPIES {
+                    pass.dispatch_workgroups(gx, gy, 1);
+                }
             }
             let start = std::time::Instant::now();
             self.queue.submit([encoder.finish()]);
@@ -197,7 +213,7 @@ impl Gpu {
             }
         }
         times.sort_by(f64::total_cmp);
-        Ok(2.0 * f64::from(COPIES) * bytes as f64 / times[times.len() / 2])
+        Ok((bytes, 2.0 * f64::from(COPIES) * bytes as f64 / times[times.len() / 2]))
     }
 
     /// The first error the device reported since the last call, if any.

@@ -47,8 +47,6 @@ pub(crate) struct GpuPin {
     pub(crate) node: u32,
 }
 
-/// Bit of an `incident` entry marking the node as the contact's `b`.
-pub(crate) const IS_B: u32 = 0x8000_0000;
 
 #[cfg(test)]
 mod tests {
@@ -119,17 +117,8 @@ mod tests {
 
     #[test]
     fn shader_constants_match() {
-        let small = shaders::SMALL.body;
-        for (name, value) in [
-            ("SMALL_THREADS", crate::SMALL_THREADS as u64),
-            ("SMALL_NODES", crate::SMALL_NODES as u64),
-            ("SMALL_BATCH", crate::SMALL_BATCH),
-        ] {
-            assert!(small.contains(&format!("const {name}: u32 = {value}u;")), "{name} differs");
-        }
         assert!(shaders::COMMON.contains(&format!("const WORKGROUP: u32 = {}u;", crate::WORKGROUP)));
         let common = shaders::COMMON;
-        assert!(common.contains(&format!("const IS_B: u32 = 0x{IS_B:08x}u;")), "IS_B differs");
         assert!(common.contains(&format!("const FRICTION_ON: u32 = {FRICTION_ON}u;")), "FRICTION_ON differs");
     }
 }

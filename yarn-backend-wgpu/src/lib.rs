@@ -42,9 +42,9 @@ pub mod shaders;
 
 use std::sync::Arc;
 
-use bytemuck::Pod;
+use bytemuck::{Pod, Zeroable};
 pub use gpu::{Gpu, GpuError};
-use layout::{FRICTION_ON, GpuContact, GpuParams, GpuPin, IS_B};
+use layout::{FRICTION_ON, GpuContact, GpuParams, GpuPin};
 use wgpu::util::DeviceExt;
 use yarn_model::terms::MIN_SIN_THETA;
 use yarn_model::{Backend, BackendError, Model, Params, State, V3};
@@ -53,11 +53,6 @@ use yarn_topology::{Fabric, Pin};
 /// Threads per workgroup in every pass (`WORKGROUP` in the shaders).
 pub(crate) const WORKGROUP: u32 = 128;
 
-/// The small-fabric pass (`small.wgsl`): threads of its one workgroup,
-/// nodes per thread, and substeps per dispatch.
-const SMALL_THREADS: usize = 256;
-const SMALL_NODES: usize = 16;
-const SMALL_BATCH: u64 = 16;
 
 /// The fixed-point scale S of [`Mode::FixedPointAtomic`] (the paper's).
 pub const FIXED_POINT_SCALE: f32 = 4096.0;
@@ -89,7 +84,6 @@ impl Mode {
 pub struct Wgpu {
     gpu: Arc<Gpu>,
     mode: Mode,
-    small_pass: bool,
     loaded: Option<Loaded>,
 }
 
@@ -105,16 +99,7 @@ impl Wgpu {
     /// A backend on a shared GPU context: building one compiles every
     /// pipeline, so share it between backends.
     pub fn with_gpu(gpu: Arc<Gpu>, mode: Mode) -> Self {
-        Self { gpu, mode, small_pass: true, loaded: None }
-    }
-
-    /// Whether gather mode may run fabrics of up to 4,096 nodes with its
-    /// small-fabric pass: 16 whole substeps per dispatch in one workgroup
-    /// (default: on). Off, every substep takes its two or three dispatches;
-    /// the results agree to float rounding.
-    pub fn small_pass(mut self, on: bool) -> Self {
-        self.small_pass = on;
-        self
+        Self { gpu, mode, loaded: None }
     }
 
     /// The GPU context.
@@ -199,7 +184,8 @@ struct Buffers {
     /// Per node i: the rest length of segment i and κθ0 of joint i.
     chain: wgpu::Buffer,
     contacts: wgpu::Buffer,
-    /// Each node's contacts: `incident[start[i]..start[i + 1]]`.
+    /// Each node's contacts, copied in contact order:
+    /// `incident[start[i]..start[i + 1]]`.
     start: wgpu::Buffer,
     incident: wgpu::Buffer,
     pins: wgpu::Buffer,
@@ -217,7 +203,6 @@ struct Groups {
     probe: [[wgpu::BindGroup; 2]; 2],
     friction: [[wgpu::BindGroup; 2]; 2],
     pins: [[wgpu::BindGroup; 2]; 2],
-    small: [[wgpu::BindGroup; 2]; 2],
     fused: [[wgpu::BindGroup; 2]; 2],
 }
 
@@ -291,9 +276,8 @@ fn gpu_contacts(model: &Model<f32>) -> Vec<GpuContact> {
 }
 
 /// Each node's contacts in contact order, as `start` offsets into
-/// `incident` entries (the contact index, with [`IS_B`] where the node is
-/// the contact's `b`).
-fn incidence(model: &Model<f32>) -> (Vec<u32>, Vec<u32>) {
+/// `incident`, which holds a copy of each contact record per node.
+fn incidence(model: &Model<f32>) -> (Vec<u32>, Vec<GpuContact>) {
     let n = model.node_count();
     let mut start = vec![0u32; n + 1];
     for c in &model.contacts {
@@ -304,10 +288,11 @@ fn incidence(model: &Model<f32>) -> (Vec<u32>, Vec<u32>) {
         start[i + 1] += start[i];
     }
     let mut fill = start.clone();
-    let mut incident = vec![0u32; model.contacts.len() * 2];
-    for (k, c) in model.contacts.iter().enumerate() {
-        for (node, flag) in [(c.a, 0), (c.b, IS_B)] {
-            incident[fill[node as usize] as usize] = k as u32 | flag;
+    let contacts = gpu_contacts(model);
+    let mut incident = vec![GpuContact::zeroed(); contacts.len() * 2];
+    for c in contacts {
+        for node in [c.a, c.b] {
+            incident[fill[node as usize] as usize] = c;
             fill[node as usize] += 1;
         }
     }
@@ -354,31 +339,35 @@ impl Wgpu {
         let k = &self.gpu.kernels;
         let (x, v) = (&b.x, &b.v);
         let table = |f: &dyn Fn(usize, usize) -> wgpu::BindGroup| [[f(0, 0), f(0, 1)], [f(1, 0), f(1, 1)]];
-        // The gather and fixed passes differ only in their last two buffers.
-        let (layout, t0, t1) = match self.mode {
-            Mode::Gather => (&k.gather.layout, &b.start, &b.incident),
-            Mode::FixedPointAtomic => (&k.fixed.layout, &b.acc, &b.overflow),
+        // The forces pass with `out` = the next positions (`step`) or the
+        // force buffer (`probe`).
+        let forces_pass = |label, px: usize, pv: usize, out: &wgpu::Buffer| match self.mode {
+            Mode::Gather => {
+                self.bind(&k.gather.layout, label, &[&b.params, &x[px], &v[pv], out, &b.chain, &b.start, &b.incident])
+            }
+            Mode::FixedPointAtomic => self.bind(&k.fixed.layout, label, &[
+                &b.params,
+                &x[px],
+                &v[pv],
+                out,
+                &b.chain,
+                &b.contacts,
+                &b.acc,
+                &b.overflow,
+            ]),
         };
         Groups {
-            step: table(&|px, pv| {
-                self.bind(layout, "step", &[&b.params, &x[px], &v[pv], &x[1 - px], &b.chain, &b.contacts, t0, t1])
-            }),
-            probe: table(&|px, pv| {
-                self.bind(layout, "forces", &[&b.params, &x[px], &v[pv], &b.forces, &b.chain, &b.contacts, t0, t1])
-            }),
+            step: table(&|px, pv| forces_pass("step", px, pv, &x[1 - px])),
+            probe: table(&|px, pv| forces_pass("forces", px, pv, &b.forces)),
             friction: table(&|px, pv| {
-                let buffers = [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.contacts, &b.start, &b.incident];
+                let buffers = [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.start, &b.incident];
                 self.bind(&k.friction.layout, "friction", &buffers)
             }),
             pins: table(&|px, pv| self.bind(&k.pins.layout, "pins", &[&b.params, &x[px], &v[pv], &b.pins])),
             fused: table(&|px, pv| {
                 let buffers =
-                    [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.chain, &b.contacts, &b.start, &b.incident];
+                    [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.chain, &b.start, &b.incident];
                 self.bind(&k.fused.layout, "fused", &buffers)
-            }),
-            small: table(&|px, pv| {
-                let buffers = [&b.params, &x[px], &v[pv], &b.chain, &b.contacts, &b.start, &b.incident, &b.pins];
-                self.bind(&k.small.layout, "small", &buffers)
             }),
         }
     }
@@ -461,18 +450,7 @@ impl Wgpu {
         });
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            let small = self.small_pass
-                && self.mode == Mode::Gather
-                && l.model.node_count() <= SMALL_THREADS * SMALL_NODES;
-            let batches = if small { substeps / SMALL_BATCH } else { 0 };
-            if batches > 0 {
-                pass.set_pipeline(&self.gpu.kernels.small.entries[0]);
-                pass.set_bind_group(0, &l.groups.small[l.px][l.pv], &[]);
-                for _ in 0..batches {
-                    pass.dispatch_workgroups(1, 1, 1);
-                }
-            }
-            for _ in 0..substeps - batches * SMALL_BATCH {
+            for _ in 0..substeps {
                 self.record_substep(l, &mut pass);
             }
         }
@@ -571,7 +549,9 @@ impl Backend for Wgpu {
     fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
         self.loaded()?.model.set_contacts_alive(alive)?;
         let loaded = self.loaded.as_ref().ok_or(BackendError::NotLoaded)?;
-        self.gpu.queue.write_buffer(&loaded.buffers.contacts, 0, bytemuck::cast_slice(&gpu_contacts(&loaded.model)));
+        let queue = &self.gpu.queue;
+        queue.write_buffer(&loaded.buffers.contacts, 0, bytemuck::cast_slice(&gpu_contacts(&loaded.model)));
+        queue.write_buffer(&loaded.buffers.incident, 0, bytemuck::cast_slice(&incidence(&loaded.model).1));
         Ok(())
     }
 

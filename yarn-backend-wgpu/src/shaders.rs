@@ -46,18 +46,17 @@ pub const FRICTION: Pass =
     Pass { name: "friction.wgsl", uses: &[NODE_FRICTION], body: include_str!("../shaders/friction.wgsl") };
 /// Pins (entry point `main`).
 pub const PINS: Pass = Pass { name: "pins.wgsl", uses: &[], body: include_str!("../shaders/pins.wgsl") };
-/// Gather mode's whole substep for small fabrics, several per dispatch
-/// (entry point `main`).
-pub const SMALL: Pass =
-    Pass { name: "small.wgsl", uses: &[NODE_FORCE, NODE_FRICTION], body: include_str!("../shaders/small.wgsl") };
 
 /// Gather mode's whole substep with friction, in one dispatch (entry
 /// point `main`).
 pub const FUSED: Pass =
     Pass { name: "fused.wgsl", uses: &[NODE_FORCE], body: include_str!("../shaders/fused.wgsl") };
 
+/// A plain copy, to measure bandwidth (entry point `main`).
+pub const COPY: Pass = Pass { name: "copy.wgsl", uses: &[], body: include_str!("../shaders/copy.wgsl") };
+
 /// Every pass, for validation.
-pub const ALL: [Pass; 6] = [GATHER, FIXED, FRICTION, PINS, SMALL, FUSED];
+pub const ALL: [Pass; 6] = [GATHER, FIXED, FRICTION, PINS, FUSED, COPY];
 
 #[cfg(test)]
 pub(crate) mod tests {

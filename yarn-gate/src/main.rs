@@ -203,9 +203,11 @@ fn main() -> ExitCode {
                     match Gpu::new().map_err(|e| e.to_string()).and_then(|gpu| {
                         Ok((gpu.adapter(), gpu.copy_bandwidth(1 << 30, 9)?))
                     }) {
-                        Ok((adapter, rate)) => {
-                            eprintln!("{adapter}: device copy {:.0} GB/s (read + write, 1 GiB buffer)", rate / 1e9)
-                        }
+                        Ok((adapter, (bytes, rate))) => eprintln!(
+                            "{adapter}: a copy pass moves {:.0} GB/s (read + write, {} MiB buffer)",
+                            rate / 1e9,
+                            bytes >> 20
+                        ),
                         Err(e) => eprintln!("copy bandwidth not measured: {e}"),
                     }
                 }

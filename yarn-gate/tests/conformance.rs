@@ -66,17 +66,16 @@ fn cpu<B>(make: impl Fn() -> B) -> Option<impl Fn() -> B> {
     Some(make)
 }
 
-fn wgpu(mode: Mode, small_pass: bool) -> Option<impl Fn() -> Wgpu> {
-    gpu().map(|gpu| move || Wgpu::with_gpu(Arc::clone(&gpu), mode).small_pass(small_pass))
+fn wgpu(mode: Mode) -> Option<impl Fn() -> Wgpu> {
+    gpu().map(|gpu| move || Wgpu::with_gpu(Arc::clone(&gpu), mode))
 }
 
 conformance!(serial_f32, cpu(Serial::<f32>::new), Tolerance::CPU_F32);
 conformance!(rayon_global_pool, cpu(Rayon::new), Tolerance::CPU_F32);
 conformance!(rayon_one_thread, cpu(|| Rayon::with_threads(1).unwrap()), Tolerance::CPU_F32);
 conformance!(rayon_three_threads, cpu(|| Rayon::with_threads(3).unwrap()), Tolerance::CPU_F32);
-conformance!(wgpu_gather, wgpu(Mode::Gather, true), Tolerance::GPU_GATHER);
-conformance!(wgpu_gather_pass_by_pass, wgpu(Mode::Gather, false), Tolerance::GPU_GATHER);
-conformance!(wgpu_fixed_point, wgpu(Mode::FixedPointAtomic, true), Tolerance::GPU_FIXED_POINT);
+conformance!(wgpu_gather, wgpu(Mode::Gather), Tolerance::GPU_GATHER);
+conformance!(wgpu_fixed_point, wgpu(Mode::FixedPointAtomic), Tolerance::GPU_FIXED_POINT);
 
 /// Serial f32 against Serial f64 over the gate's 12,000-substep relaxation:
 /// the precision cost of f32, reported. The free patch creeps along soft
