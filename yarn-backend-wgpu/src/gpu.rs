@@ -156,11 +156,11 @@ impl Gpu {
     }
 
     /// The memory bandwidth a pass reaches on this device, in bytes per
-    /// second counting each byte read and written: the median of `repeats`
-    /// timed submissions of eight copies of a `bytes`-sized buffer by a
-    /// compute pass (`copy.wgsl`), after one untimed. The ceiling for the
-    /// memory-bound passes. Returns the buffer size used (`bytes`, capped by
-    /// the binding limit) and the rate.
+    /// second counting each byte read and written: a compute pass
+    /// (`copy.wgsl`) copying a `bytes`-sized buffer (capped by the binding
+    /// limit), the median of `repeats` timed submissions of eight copies.
+    /// The ceiling for the memory-bound passes. Returns the buffer size used
+    /// and the rate.
     ///
     /// # Errors
     /// When the device fails.
@@ -168,37 +168,53 @@ impl Gpu {
         let limit = self.limits.max_storage_buffer_binding_size.min(self.limits.max_buffer_size);
         let elements = (bytes.min(limit) / 16).min(u64::from(u32::MAX)) as u32;
         let bytes = u64::from(elements) * 16;
+        let seconds = self.time_copies(elements, 8, repeats)?;
+        Ok((bytes, 2.0 * bytes as f64 / seconds))
+    }
+
+    /// The cost of one dispatch that does almost nothing, in seconds: the
+    /// floor under every substep, since each takes at least one dispatch.
+    /// The median of `repeats` submissions of 256 copies of one 16-byte
+    /// element.
+    ///
+    /// # Errors
+    /// When the device fails.
+    pub fn dispatch_overhead(&self, repeats: usize) -> Result<f64, String> {
+        self.time_copies(1, 256, repeats)
+    }
+
+    /// Seconds per dispatch of `copy.wgsl` over `elements` 16-byte
+    /// elements: the median of `repeats` timed submissions of `copies`
+    /// dispatches each (one untimed first), so the submission's own
+    /// latency is shared out.
+    fn time_copies(&self, elements: u32, copies: u32, repeats: usize) -> Result<f64, String> {
         let buffer = |label| {
             self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
-                size: bytes,
+                size: u64::from(elements.max(1)) * 16,
                 usage: wgpu::BufferUsages::STORAGE,
                 mapped_at_creation: false,
             })
         };
-        let (from, to) = (buffer("copy source"), buffer("copy target"));
+        let (source, target) = (buffer("copy source"), buffer("copy target"));
         let copy = build(&self.device, &shaders::COPY, &[Slot::Read, Slot::ReadWrite], ["main"]);
-        let entries = [&from, &to].map(|b| b.as_entire_binding());
         let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("copy"),
             layout: &copy.layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: entries[0].clone() },
-                wgpu::BindGroupEntry { binding: 1, resource: entries[1].clone() },
+                wgpu::BindGroupEntry { binding: 0, resource: source.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: target.as_entire_binding() },
             ],
         });
         let (gx, gy) = self.groups(elements).ok_or("the copy buffer is too large to dispatch")?;
         let mut times = Vec::with_capacity(repeats);
-        // Several copies per submission, so the submission's own latency
-        // does not count as copying time.
-        const COPIES: u32 = 8;
         for run in 0..=repeats {
             let mut encoder = self.device.create_command_encoder(&Default::default());
             {
                 let mut pass = encoder.begin_compute_pass(&Default::default());
                 pass.set_pipeline(&copy.entries[0]);
                 pass.set_bind_group(0, &group, &[]);
-                for _ in 0..COPIES {
+                for _ in 0..copies {
                     pass.dispatch_workgroups(gx, gy, 1);
                 }
             }
@@ -209,11 +225,11 @@ impl Gpu {
                 .map_err(|e| e.to_string())?;
             self.take_error()?;
             if run > 0 {
-                times.push(start.elapsed().as_secs_f64());
+                times.push(start.elapsed().as_secs_f64() / f64::from(copies));
             }
         }
         times.sort_by(f64::total_cmp);
-        Ok((bytes, 2.0 * f64::from(COPIES) * bytes as f64 / times[times.len() / 2]))
+        Ok(times[times.len() / 2])
     }
 
     /// The first error the device reported since the last call, if any.
@@ -235,7 +251,9 @@ impl Gpu {
         let groups = threads.div_ceil(crate::WORKGROUP).max(1);
         let max = self.limits.max_compute_workgroups_per_dimension;
         let rows = groups.div_ceil(max);
-        (rows <= max).then_some(if rows == 1 { (groups, 1) } else { (max, rows) })
+        // Rows of equal length, so few workgroups start only to exit (a
+        // grid of 65,535 + 1 workgroups as two full rows ran 3x slower).
+        (rows <= max).then_some((groups.div_ceil(rows), rows))
     }
 }
 
