@@ -47,7 +47,6 @@ pub(crate) struct GpuPin {
     pub(crate) node: u32,
 }
 
-
 #[cfg(test)]
 mod tests {
     use std::mem::{offset_of, size_of};

@@ -4,17 +4,20 @@
 //! - [`Mode::Gather`] (the default): each node sums its own segments,
 //!   joints and contacts through a precomputed adjacency, in a fixed order,
 //!   recomputing the elements it shares with its neighbours. No atomics, no
-//!   quantum, deterministic, and one pass instead of two.
+//!   quantum, deterministic. With friction it also recomputes its contact
+//!   partners' v*, so a whole substep is one dispatch (`fused.wgsl`), or
+//!   `gather.wgsl` without friction.
 //! - [`Mode::FixedPointAtomic`]: the paper's scheme. Every element adds
 //!   round(f·S), S = 4096, into three i32 accumulators per node with
-//!   atomicAdd. An overflow is detected and reported, never wrapped.
+//!   atomicAdd (`fixed.wgsl`), then friction and the move (`friction.wgsl`).
+//!   An overflow is detected and reported, and the state put back as it was
+//!   before the failing call; nothing wraps silently.
 //!
-//! A substep is two dispatches (forces and the damped velocity update;
-//! friction and the move), one without friction, plus one for pins when
-//! there are any; fixed-point adds its scatter. [`Backend::advance`] records
-//! all `n` substeps into one submission and reads nothing back; state is
-//! copied back only when asked. It waits for the GPU to finish, so errors
-//! and timings belong to the call that caused them.
+//! Pins take one more dispatch when there are any (`pins.wgsl`).
+//! [`Backend::advance`] records all `n` substeps into one submission and
+//! reads nothing back; state is copied back only when asked. It waits for
+//! the GPU to finish, so errors and timings belong to the call that caused
+//! them.
 //!
 //! Only WebGPU's core features are used, so the same shaders run in a
 //! browser. The crate owns how the GPU executes the model, never what the
@@ -52,7 +55,6 @@ use yarn_topology::{Fabric, Pin};
 
 /// Threads per workgroup in every pass (`WORKGROUP` in the shaders).
 pub(crate) const WORKGROUP: u32 = 128;
-
 
 /// The fixed-point scale S of [`Mode::FixedPointAtomic`] (the paper's).
 pub const FIXED_POINT_SCALE: f32 = 4096.0;
@@ -345,16 +347,11 @@ impl Wgpu {
             Mode::Gather => {
                 self.bind(&k.gather.layout, label, &[&b.params, &x[px], &v[pv], out, &b.chain, &b.start, &b.incident])
             }
-            Mode::FixedPointAtomic => self.bind(&k.fixed.layout, label, &[
-                &b.params,
-                &x[px],
-                &v[pv],
-                out,
-                &b.chain,
-                &b.contacts,
-                &b.acc,
-                &b.overflow,
-            ]),
+            Mode::FixedPointAtomic => self.bind(
+                &k.fixed.layout,
+                label,
+                &[&b.params, &x[px], &v[pv], out, &b.chain, &b.contacts, &b.acc, &b.overflow],
+            ),
         };
         Groups {
             step: table(&|px, pv| forces_pass("step", px, pv, &x[1 - px])),
@@ -365,8 +362,7 @@ impl Wgpu {
             }),
             pins: table(&|px, pv| self.bind(&k.pins.layout, "pins", &[&b.params, &x[px], &v[pv], &b.pins])),
             fused: table(&|px, pv| {
-                let buffers =
-                    [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.chain, &b.start, &b.incident];
+                let buffers = [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.chain, &b.start, &b.incident];
                 self.bind(&k.fused.layout, "fused", &buffers)
             }),
         }
@@ -496,7 +492,7 @@ impl Backend for Wgpu {
         let n = model.node_count();
         let contacts = model.contacts.len();
         self.check_fits("the node buffer (bytes)", n as u64 * 16)?;
-        self.check_fits("the contact buffer (bytes)", contacts as u64 * 16)?;
+        self.check_fits("the per-node contact records (bytes)", contacts as u64 * 32)?;
         self.check_dispatch(n.max(contacts))?;
         let (start, incident) = incidence(&model);
         let device = &self.gpu.device;

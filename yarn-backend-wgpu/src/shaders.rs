@@ -49,8 +49,7 @@ pub const PINS: Pass = Pass { name: "pins.wgsl", uses: &[], body: include_str!("
 
 /// Gather mode's whole substep with friction, in one dispatch (entry
 /// point `main`).
-pub const FUSED: Pass =
-    Pass { name: "fused.wgsl", uses: &[NODE_FORCE], body: include_str!("../shaders/fused.wgsl") };
+pub const FUSED: Pass = Pass { name: "fused.wgsl", uses: &[NODE_FORCE], body: include_str!("../shaders/fused.wgsl") };
 
 /// A plain copy, to measure bandwidth (entry point `main`).
 pub const COPY: Pass = Pass { name: "copy.wgsl", uses: &[], body: include_str!("../shaders/copy.wgsl") };

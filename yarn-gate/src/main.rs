@@ -200,9 +200,10 @@ fn main() -> ExitCode {
             Ok(rows) => {
                 if args.backend.iter().any(|b| b.starts_with("wgpu")) {
                     // The memory-bound ceiling, measured in the same run.
-                    match Gpu::new().map_err(|e| e.to_string()).and_then(|gpu| {
-                        Ok((gpu.adapter(), gpu.copy_bandwidth(1 << 30, 9)?, gpu.dispatch_overhead(9)?))
-                    }) {
+                    match Gpu::new()
+                        .map_err(|e| e.to_string())
+                        .and_then(|gpu| Ok((gpu.adapter(), gpu.copy_bandwidth(1 << 30, 9)?, gpu.dispatch_overhead(9)?)))
+                    {
                         Ok((adapter, (bytes, rate), dispatch)) => eprintln!(
                             "{adapter}: a copy pass moves {:.0} GB/s (read + write, {} MiB buffer); \
                              an empty dispatch costs {:.2} µs",
