@@ -215,22 +215,14 @@ impl<T: Real> Kernel<T> {
     pub(crate) fn new(fabric: &Fabric, params: &Params, exec: Exec, threads: usize) -> Result<Self, BackendError> {
         let model = Model::<T>::new(fabric, params)?;
         let n = model.node_count();
-        let mut start = vec![0u32; n + 1];
-        for c in &model.contacts {
-            start[c.a as usize + 1] += 1;
-            start[c.b as usize + 1] += 1;
-        }
-        for i in 0..n {
-            start[i + 1] += start[i];
-        }
-        let mut fill = start.clone();
-        let mut incident = vec![Incidence { node: 0, contact: 0, sign: T::zero() }; model.contacts.len() * 2];
-        for (k, c) in model.contacts.iter().enumerate() {
-            for (node, sign) in [(c.a, T::one()), (c.b, -T::one())] {
-                incident[fill[node as usize] as usize] = Incidence { node, contact: k as u32, sign };
-                fill[node as usize] += 1;
-            }
-        }
+        let (start, entries) = model.incidence();
+        let incident = entries
+            .into_iter()
+            .map(|(node, contact)| {
+                let sign = if model.contacts[contact as usize].a == node { T::one() } else { -T::one() };
+                Incidence { node, contact, sign }
+            })
+            .collect();
         let state = State::<T>::at_rest(fabric);
         let mut kernel = Self {
             positions: Field::from_vectors(&state.positions),

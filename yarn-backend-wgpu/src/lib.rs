@@ -45,7 +45,7 @@ pub mod shaders;
 
 use std::sync::Arc;
 
-use bytemuck::{Pod, Zeroable};
+use bytemuck::Pod;
 pub use gpu::{Gpu, GpuError};
 use layout::{FRICTION_ON, GpuContact, GpuParams, GpuPin};
 use wgpu::util::DeviceExt;
@@ -280,25 +280,9 @@ fn gpu_contacts(model: &Model<f32>) -> Vec<GpuContact> {
 /// Each node's contacts in contact order, as `start` offsets into
 /// `incident`, which holds a copy of each contact record per node.
 fn incidence(model: &Model<f32>) -> (Vec<u32>, Vec<GpuContact>) {
-    let n = model.node_count();
-    let mut start = vec![0u32; n + 1];
-    for c in &model.contacts {
-        start[c.a as usize + 1] += 1;
-        start[c.b as usize + 1] += 1;
-    }
-    for i in 0..n {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
     let contacts = gpu_contacts(model);
-    let mut incident = vec![GpuContact::zeroed(); contacts.len() * 2];
-    for c in contacts {
-        for node in [c.a, c.b] {
-            incident[fill[node as usize] as usize] = c;
-            fill[node as usize] += 1;
-        }
-    }
-    (start, incident)
+    let (start, entries) = model.incidence();
+    (start, entries.into_iter().map(|(_, k)| contacts[k as usize]).collect())
 }
 
 impl Wgpu {

@@ -181,20 +181,9 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Command::Gpucheck(args) => {
-            match Gpu::new().map_err(GateError::from).and_then(|gpu| run_gpucheck(&gpu, args.size.0, args.size.1)) {
-                Ok(report) => {
-                    if args.json {
-                        println!("{}", serde_json::to_string_pretty(&report).expect("report serialises"));
-                    } else {
-                        print!("{}", report.table());
-                    }
-                    if report.pass { ExitCode::SUCCESS } else { ExitCode::FAILURE }
-                }
-                Err(e) => {
-                    eprintln!("error: {e}");
-                    ExitCode::from(2)
-                }
-            }
+            let report =
+                Gpu::new().map_err(GateError::from).and_then(|gpu| run_gpucheck(&gpu, args.size.0, args.size.1));
+            finish(report, args.json, |r| (r.table(), r.pass))
         }
         Command::Bench(args) => match run_bench(&args) {
             Ok(rows) => {
@@ -226,19 +215,30 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
-        Command::Check(args) => match check(&args) {
-            Ok(report) => {
-                if args.json {
-                    println!("{}", serde_json::to_string_pretty(&report).expect("report serialises"));
-                } else {
-                    print!("{}", report.table());
-                }
-                if report.pass { ExitCode::SUCCESS } else { ExitCode::FAILURE }
+        Command::Check(args) => finish(check(&args), args.json, |r| (r.table(), r.pass)),
+    }
+}
+
+/// Print a pass/fail report as JSON or as its table, and turn it into the
+/// exit code: 0 on pass, 1 on fail, 2 when it could not run.
+fn finish<R: serde::Serialize>(
+    report: Result<R, GateError>,
+    json: bool,
+    table_and_pass: impl Fn(&R) -> (String, bool),
+) -> ExitCode {
+    match report {
+        Ok(report) => {
+            let (table, pass) = table_and_pass(&report);
+            if json {
+                println!("{}", serde_json::to_string_pretty(&report).expect("report serialises"));
+            } else {
+                print!("{table}");
             }
-            Err(e) => {
-                eprintln!("error: {e}");
-                ExitCode::from(2)
-            }
-        },
+            if pass { ExitCode::SUCCESS } else { ExitCode::FAILURE }
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(2)
+        }
     }
 }

@@ -146,6 +146,30 @@ impl<T: Real> Model<T> {
         Ok(())
     }
 
+    /// Each node's contacts, for backends that gather per node: the
+    /// contacts of node i are `entries[start[i]..start[i + 1]]`, each a
+    /// (node, contact index) pair, in contact order. `start` has one more
+    /// entry than there are nodes.
+    pub fn incidence(&self) -> (Vec<u32>, Vec<(u32, u32)>) {
+        let mut start = vec![0u32; self.nodes + 1];
+        for c in &self.contacts {
+            start[c.a as usize + 1] += 1;
+            start[c.b as usize + 1] += 1;
+        }
+        for i in 0..self.nodes {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut entries = vec![(0, 0); self.contacts.len() * 2];
+        for (k, c) in self.contacts.iter().enumerate() {
+            for node in [c.a, c.b] {
+                entries[fill[node as usize] as usize] = (node, k as u32);
+                fill[node as usize] += 1;
+            }
+        }
+        (start, entries)
+    }
+
     /// Set the liveness of every contact.
     ///
     /// # Errors
