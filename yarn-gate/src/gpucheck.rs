@@ -1,6 +1,7 @@
 //! `gpucheck`: the GPU backend against `Serial<f32>` on the chosen adapter,
 //! for each accumulation mode: the force field after one accumulation and
-//! a 120-substep trajectory of the gate's patch.
+//! a 120-substep trajectory of the gate's patch; and the renderer, drawing
+//! the gather trajectory's end.
 
 use std::sync::Arc;
 
@@ -8,6 +9,7 @@ use serde::Serialize;
 use yarn_backend_cpu::Serial;
 use yarn_backend_wgpu::{FIXED_POINT_SCALE, Gpu, Mode, Wgpu};
 use yarn_model::{Backend, Params, V3, widen};
+use yarn_render::{Renderer, View};
 use yarn_topology::{Chart, Fabric, Geometry};
 
 use crate::GateError;
@@ -50,6 +52,10 @@ pub struct ModeReport {
     pub pass: bool,
 }
 
+/// The smallest fraction of the frame the drawn patch must cover (the
+/// paper's frame was 16 % yarn).
+pub const MIN_RENDER_COVERAGE: f64 = 0.02;
+
 /// The whole check.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GpuCheckReport {
@@ -64,6 +70,8 @@ pub struct GpuCheckReport {
     pub serial_f32_force_rel_err_vs_f64: f64,
     /// One report per mode.
     pub modes: Vec<ModeReport>,
+    /// The fraction of a 640x480 frame of the patch that is yarn.
+    pub render_coverage: f64,
     /// Every mode passes.
     pub pass: bool,
 }
@@ -96,6 +104,7 @@ pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCh
     let true_largest = true_forces.iter().map(|f| f.norm()).fold(0.0, f64::max).max(1.0);
     let r = fabric.yarn_radius();
     let mut modes = Vec::new();
+    let mut drawn = Vec::new();
     for mode in [Mode::Gather, Mode::FixedPointAtomic] {
         let mut backend = Wgpu::with_gpu(Arc::clone(gpu), mode);
         backend.load(&fabric, &params)?;
@@ -103,7 +112,11 @@ pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCh
         let force_max_err = max_diff(&forces, &want_forces);
         let force_rel_err_vs_f64 = max_diff_f64(&forces, &true_forces) / true_largest;
         backend.advance(TRAJECTORY_STEPS)?;
-        let trajectory_max_err = max_diff(&backend.state()?.positions, &want.positions) / r;
+        let end = backend.state()?.positions;
+        let trajectory_max_err = max_diff(&end, &want.positions) / r;
+        if mode == Mode::Gather {
+            drawn = end.iter().map(|p| [p.x, p.y, p.z]).collect();
+        }
         let (force_bound, trajectory_bound) = match mode {
             Mode::Gather => (GATHER_FORCE, GATHER_TRAJECTORY),
             Mode::FixedPointAtomic => (GATHER_FORCE + FIXED_POINT_QUANTA / largest, FIXED_POINT_TRAJECTORY),
@@ -120,13 +133,18 @@ pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCh
             pass: force_rel_err <= force_bound && trajectory_max_err <= trajectory_bound,
         });
     }
+    let view = View { width: 640, height: 480, ..View::default() };
+    let render_coverage =
+        Renderer::new(gpu).render(&drawn, r as f32, &view).map_err(|e| GateError::Render(e.to_string()))?.coverage();
+    let pass = modes.iter().all(|m| m.pass) && render_coverage > MIN_RENDER_COVERAGE;
     Ok(GpuCheckReport {
         adapter: gpu.adapter(),
         size: format!("{width}x{height}"),
         nodes: fabric.node_count(),
         serial_f32_force_rel_err_vs_f64: max_diff_f64(&want_forces, &true_forces) / true_largest,
-        pass: modes.iter().all(|m| m.pass),
+        pass,
         modes,
+        render_coverage,
     })
 }
 
@@ -154,7 +172,12 @@ impl GpuCheckReport {
                 if m.pass { "PASS" } else { "FAIL" }
             );
         }
-        out += if self.pass { "\nPASS: the GPU matches Serial f32\n" } else { "\nFAIL\n" };
+        out += &format!(
+            "render   {:.1} % of a 640x480 frame is yarn (pass above {:.0} %)\n",
+            100.0 * self.render_coverage,
+            100.0 * MIN_RENDER_COVERAGE
+        );
+        out += if self.pass { "\nPASS: the GPU matches Serial f32 and draws the patch\n" } else { "\nFAIL\n" };
         out
     }
 }

@@ -31,6 +31,17 @@ pub enum GateError {
     /// No GPU could be opened.
     #[error(transparent)]
     Gpu(#[from] yarn_backend_wgpu::GpuError),
+    /// A frame could not be drawn or saved (the renderer's message).
+    #[error("{0}")]
+    Render(String),
+    /// A file could not be written.
+    #[error("could not write {path}: {reason}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The system's reason.
+        reason: String,
+    },
     /// Curl needs interior nodes: at least 3 stitches each way.
     #[error("a {width}x{height} patch has no interior stitches to fit a mid-plane to; use at least 3x3")]
     TooSmall {

@@ -10,7 +10,9 @@ use yarn_gate::GateError;
 use yarn_gate::bench::{BenchConfig, bench, table};
 use yarn_gate::check::{CheckConfig, CheckReport, run_check};
 use yarn_gate::gpucheck::run_gpucheck;
-use yarn_model::Params;
+use yarn_model::{Backend, Params, widen};
+use yarn_render::{Renderer, View, tube_obj};
+use yarn_topology::{Chart, Fabric, Geometry};
 
 /// yarnify's behavioural gate: does the simulated yarn behave like knit?
 #[derive(Debug, Parser)]
@@ -31,6 +33,37 @@ enum Command {
     /// Check the GPU backend against the serial f32 one on this machine's
     /// adapter, in both accumulation modes (exit code 0 only if both pass).
     Gpucheck(GpucheckArgs),
+    /// Relax a patch, then draw its yarn as tubes into a PNG (and
+    /// optionally a Wavefront OBJ mesh).
+    Render(RenderArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct RenderArgs {
+    /// Patch size in stitches, WIDTHxHEIGHT.
+    #[arg(long, default_value = "16x16", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Substeps of free relaxation before drawing.
+    #[arg(long, default_value_t = 3_000)]
+    steps: u64,
+    /// Backend for the relaxation (see `check --help`).
+    #[arg(long, default_value = "rayon")]
+    backend: String,
+    /// The PNG to write.
+    #[arg(long, default_value = "fabric.png")]
+    out: std::path::PathBuf,
+    /// Also write the tube surface as a Wavefront OBJ mesh here.
+    #[arg(long)]
+    obj: Option<std::path::PathBuf>,
+    /// Image size in pixels, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x960", value_parser = parse_size)]
+    image: (usize, usize),
+    /// Camera rotation about the vertical axis, in degrees.
+    #[arg(long, default_value_t = 0.0)]
+    orbit: f32,
+    /// Camera angle above the fabric's plane, in degrees.
+    #[arg(long, default_value_t = 20.0)]
+    elevation: f32,
 }
 
 #[derive(Debug, clap::Args)]
@@ -177,9 +210,71 @@ fn run_bench(args: &BenchArgs) -> Result<Vec<yarn_gate::bench::BenchRow>, GateEr
     Ok(rows)
 }
 
+/// Relax, draw, save; returns the coverage.
+fn render(args: &RenderArgs) -> Result<f64, GateError> {
+    let fabric = Fabric::from_chart(&Chart::stockinette(args.size.0, args.size.1)?, &Geometry::default())?;
+    let bar = progress_bar(args.steps, "{msg:>12} [{bar:40}] {pos}/{len} substeps ({eta})");
+    bar.set_message("relaxing");
+    let positions = with_backend!(args.backend.as_str(), 0, backend => {
+        let mut backend = backend;
+        relax(&mut backend, &fabric, args.steps, &bar)
+    })?;
+    bar.finish_and_clear();
+    let radius = fabric.yarn_radius() as f32;
+    let view = View {
+        width: args.image.0 as u32,
+        height: args.image.1 as u32,
+        orbit: args.orbit.to_radians(),
+        elevation: args.elevation.to_radians(),
+    };
+    let frame = Renderer::new(&*Gpu::new()?)
+        .render(&positions, radius, &view)
+        .and_then(|frame| frame.save_png(&args.out).map(|()| frame))
+        .map_err(|e| GateError::Render(e.to_string()))?;
+    if let Some(path) = &args.obj {
+        std::fs::write(path, tube_obj(&positions, radius))
+            .map_err(|e| GateError::Io { path: path.display().to_string(), reason: e.to_string() })?;
+    }
+    Ok(frame.coverage())
+}
+
+/// Advance `backend` from rest by `steps` substeps, with progress; return
+/// the positions in f32.
+fn relax<B: Backend>(
+    backend: &mut B,
+    fabric: &Fabric,
+    steps: u64,
+    bar: &ProgressBar,
+) -> Result<Vec<[f32; 3]>, GateError> {
+    backend.load(fabric, &Params::gate())?;
+    let chunk = (steps / 100).max(1);
+    let mut done = 0;
+    while done < steps {
+        let n = chunk.min(steps - done);
+        backend.advance(n)?;
+        done += n;
+        bar.set_position(done);
+    }
+    let state = backend.state()?;
+    Ok(state.positions.iter().map(widen).map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Render(args) => match render(&args) {
+            Ok(coverage) => {
+                println!("wrote {} ({:.1} % of the frame is yarn)", args.out.display(), 100.0 * coverage);
+                if let Some(obj) = &args.obj {
+                    println!("wrote {}", obj.display());
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::from(2)
+            }
+        },
         Command::Gpucheck(args) => {
             let report =
                 Gpu::new().map_err(GateError::from).and_then(|gpu| run_gpucheck(&gpu, args.size.0, args.size.1));

@@ -128,6 +128,8 @@ fn cli_gpucheck_passes_and_reports_every_mode() {
     // Fixed point is quantised, so it cannot be exact; gather has no quantum.
     assert!(modes[1]["force_max_err"].as_f64().unwrap() > 0.0);
     assert!(modes[0]["force_rel_err"].as_f64().unwrap() <= 1e-5);
+    let coverage = report["render_coverage"].as_f64().unwrap();
+    assert!(coverage > 0.02 && coverage < 1.0, "render coverage {coverage}");
     assert_eq!(report["pass"], true);
     assert!(output.status.success());
 }
@@ -148,4 +150,34 @@ fn cli_without_an_adapter_says_what_to_install() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains("no GPU adapter found") && stderr.contains("mesa-vulkan-drivers"), "{stderr}");
     assert!(stderr.contains("CPU backend"), "{stderr}");
+}
+
+/// `render` writes a PNG of the requested size and an OBJ mesh.
+#[test]
+fn cli_render_writes_a_png_and_an_obj() {
+    let dir = std::env::temp_dir().join(format!("yarnify-render-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (png, obj) = (dir.join("patch.png"), dir.join("patch.obj"));
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
+        .args(["render", "--size", "4x3", "--steps", "60", "--image", "160x120", "--backend", "serial-f32"])
+        .arg("--out")
+        .arg(&png)
+        .arg("--obj")
+        .arg(&obj)
+        .output()
+        .unwrap();
+    if output.status.code() == Some(2) && std::env::var_os("CI").is_none() {
+        eprintln!("SKIPPING render: {}", String::from_utf8_lossy(&output.stderr));
+        return;
+    }
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    // Width and height sit in the IHDR chunk, big-endian, from byte 16.
+    assert_eq!(u32::from_be_bytes(bytes[16..20].try_into().unwrap()), 160);
+    assert_eq!(u32::from_be_bytes(bytes[20..24].try_into().unwrap()), 120);
+    let mesh = std::fs::read_to_string(&obj).unwrap();
+    // 4x3 stitches: 96 nodes, 7 vertices a ring.
+    assert_eq!(mesh.lines().filter(|l| l.starts_with("v ")).count(), 96 * 7);
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -1,0 +1,531 @@
+//! The swept-tube renderer for yarnify (paper §9): the yarn polyline drawn
+//! as a tube of radius r, offscreen on wgpu, to an RGBA image or PNG; and
+//! the same tube as a Wavefront OBJ mesh.
+//!
+//! The tube is generated in the vertex shader (`shaders/yarn.wgsl`, the
+//! file the browser demo uses too): one instance per segment, [`SIDES`]
+//! ring vertices at each end, around each node's parallel-transport frame
+//! ([`transport_normals`]), so rings do not twist along the yarn. No tube
+//! geometry is stored. Shading is Lambert under a key light with an
+//! ambient floor and a rim term, in two tones that alternate along the
+//! yarn; the frame is multisampled with a depth buffer, and the camera
+//! frames the fabric's bounds.
+//!
+//! This crate owns drawing; it knows nothing of the model beyond positions.
+//!
+//! ```no_run
+//! use yarn_backend_wgpu::Gpu;
+//! use yarn_render::{Renderer, View};
+//! use yarn_topology::{Chart, Fabric, Geometry};
+//!
+//! let fabric = Fabric::from_chart(&Chart::stockinette(8, 8)?, &Geometry::default())?;
+//! let positions: Vec<[f32; 3]> =
+//!     fabric.positions().iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
+//! let renderer = Renderer::new(&*Gpu::new()?);
+//! let frame = renderer.render(&positions, fabric.yarn_radius() as f32, &View::default())?;
+//! frame.save_png("fabric.png")?;
+//! println!("{:.0} % of the frame is yarn", 100.0 * frame.coverage());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+#![forbid(unsafe_code)]
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use bytemuck::{Pod, Zeroable};
+use nalgebra::{Matrix4, Perspective3, Point3, Vector3};
+use wgpu::util::DeviceExt;
+use yarn_backend_wgpu::Gpu;
+
+/// The tube shader, shared with the browser demo.
+pub const SHADER: &str = include_str!("../shaders/yarn.wgsl");
+
+/// Ring vertices per tube section (`SIDES` in the shader).
+pub const SIDES: u32 = 7;
+
+/// The background colour, RGBA; [`Frame::coverage`] counts every other
+/// pixel as yarn.
+pub const BACKGROUND: [u8; 4] = [242, 244, 248, 255];
+
+/// Multisampling.
+const SAMPLES: u32 = 4;
+const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// Why a frame could not be drawn or saved.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// Fewer than two nodes: there is no segment to draw.
+    #[error("a yarn of {0} nodes has no segment to draw; give at least 2 positions")]
+    TooFewNodes(usize),
+    /// A position is NaN or infinite.
+    #[error("position {index} is not finite ({value:?}); the simulation diverged or the input is bad")]
+    NotFinite {
+        /// Which node.
+        index: usize,
+        /// Its position.
+        value: [f32; 3],
+    },
+    /// The image size is zero or beyond the device's texture limit.
+    #[error("an image of {width}x{height} is outside 1..={limit} pixels a side")]
+    BadSize {
+        /// Requested width.
+        width: u32,
+        /// Requested height.
+        height: u32,
+        /// The device's largest 2-D texture side.
+        limit: u32,
+    },
+    /// The GPU failed.
+    #[error("GPU error while rendering: {0}")]
+    Device(String),
+    /// The PNG could not be written.
+    #[error("could not write the image: {0}")]
+    Image(#[from] image::ImageError),
+}
+
+/// Where the camera stands and the image size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct View {
+    /// Image width in pixels (default: 1280).
+    pub width: u32,
+    /// Image height in pixels (default: 960).
+    pub height: u32,
+    /// Rotation about the fabric's vertical (wale) axis, in radians
+    /// (default: 0, facing the fabric).
+    pub orbit: f32,
+    /// Angle above the fabric's plane, in radians (default: 0.35).
+    pub elevation: f32,
+}
+
+impl Default for View {
+    fn default() -> Self {
+        Self { width: 1280, height: 960, orbit: 0.0, elevation: 0.35 }
+    }
+}
+
+/// A rendered RGBA image.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Frame {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major RGBA, 8 bits a channel.
+    pub rgba: Vec<u8>,
+}
+
+impl Frame {
+    /// The fraction of pixels that are not background: how much of the frame
+    /// the yarn covers.
+    pub fn coverage(&self) -> f64 {
+        let pixels = self.rgba.chunks_exact(4);
+        let total = pixels.len().max(1);
+        let yarn = pixels.filter(|p| p.iter().zip(BACKGROUND).any(|(&a, b)| a.abs_diff(b) > 8)).count();
+        yarn as f64 / total as f64
+    }
+
+    /// Save as PNG.
+    ///
+    /// # Errors
+    /// When the file cannot be written.
+    pub fn save_png(&self, path: impl AsRef<Path>) -> Result<(), RenderError> {
+        image::save_buffer(path, &self.rgba, self.width, self.height, image::ExtendedColorType::Rgba8)?;
+        Ok(())
+    }
+}
+
+/// Mirrors `Camera` in the shader.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct Camera {
+    view_proj: [[f32; 4]; 4],
+    eye: [f32; 3],
+    radius: f32,
+    light: [f32; 3],
+    segments: u32,
+}
+
+/// Draws yarn on a GPU.
+#[derive(Debug)]
+pub struct Renderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+impl Renderer {
+    /// A renderer on `gpu`'s device.
+    pub fn new(gpu: &Gpu) -> Self {
+        let device = gpu.device().clone();
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("yarn.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
+        let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let storage = wgpu::BufferBindingType::Storage { read_only: true };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("yarn"),
+            entries: &[entry(0, wgpu::BufferBindingType::Uniform), entry(1, storage), entry(2, storage)],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("yarn"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("yarn"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: wgpu::MultisampleState { count: SAMPLES, ..Default::default() },
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs"),
+                compilation_options: Default::default(),
+                targets: &[Some(FORMAT.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        Self { device, queue: gpu.queue().clone(), pipeline, layout }
+    }
+
+    /// Draw the yarn through `positions` as a tube of `radius`, framed by
+    /// `view`.
+    ///
+    /// # Errors
+    /// Fewer than two positions, a non-finite one, a bad image size, or a
+    /// GPU failure.
+    pub fn render(&self, positions: &[[f32; 3]], radius: f32, view: &View) -> Result<Frame, RenderError> {
+        if positions.len() < 2 {
+            return Err(RenderError::TooFewNodes(positions.len()));
+        }
+        if let Some((index, &value)) = positions.iter().enumerate().find(|(_, p)| p.iter().any(|c| !c.is_finite())) {
+            return Err(RenderError::NotFinite { index, value });
+        }
+        let limit = self.device.limits().max_texture_dimension_2d;
+        if !(1..=limit).contains(&view.width) || !(1..=limit).contains(&view.height) {
+            return Err(RenderError::BadSize { width: view.width, height: view.height, limit });
+        }
+        let normals = transport_normals(positions);
+        let camera = camera(positions, radius, view);
+        let device = &self.device;
+        let buffer = |label, contents: &[u8], usage| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let to_vec4 = |v: &[[f32; 3]]| v.iter().map(|p| [p[0], p[1], p[2], 0.0]).collect::<Vec<[f32; 4]>>();
+        let camera_buffer = buffer("camera", bytemuck::bytes_of(&camera), wgpu::BufferUsages::UNIFORM);
+        let position_buffer = buffer("positions", bytemuck::cast_slice(&to_vec4(positions)), storage);
+        let normal_buffer = buffer("normals", bytemuck::cast_slice(&to_vec4(&normals)), storage);
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("yarn"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: camera_buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: position_buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: normal_buffer.as_entire_binding() },
+            ],
+        });
+        let size = wgpu::Extent3d { width: view.width, height: view.height, depth_or_array_layers: 1 };
+        let texture = |label, format, samples, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: samples,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let target = wgpu::TextureUsages::RENDER_ATTACHMENT;
+        let msaa = texture("colour", FORMAT, SAMPLES, target);
+        let depth = texture("depth", DEPTH, SAMPLES, target);
+        let resolved = texture("resolved", FORMAT, 1, target | wgpu::TextureUsages::COPY_SRC);
+        let row = (view.width * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame"),
+            size: u64::from(row) * u64::from(view.height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let [r, g, b, _] = BACKGROUND.map(|c| srgb_to_linear(f64::from(c) / 255.0));
+            let msaa_view = msaa.create_view(&Default::default());
+            let resolved_view = resolved.create_view(&Default::default());
+            let depth_view = depth.create_view(&Default::default());
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("yarn"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &msaa_view,
+                    depth_slice: None,
+                    resolve_target: Some(&resolved_view),
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
+                        store: wgpu::StoreOp::Discard,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth_view,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.draw(0..SIDES * 6, 0..(positions.len() - 1) as u32);
+        }
+        encoder.copy_texture_to_buffer(
+            resolved.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &readback,
+                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: None },
+            },
+            size,
+        );
+        self.queue.submit([encoder.finish()]);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        readback.map_async(wgpu::MapMode::Read, .., move |result| {
+            // The receiver waits below; if it is gone there is nobody to tell.
+            let _ = sender.send(result);
+        });
+        device
+            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+            .map_err(|e| RenderError::Device(e.to_string()))?;
+        receiver
+            .recv()
+            .map_err(|e| RenderError::Device(e.to_string()))?
+            .map_err(|e| RenderError::Device(e.to_string()))?;
+        let mapped = readback.get_mapped_range(..).map_err(|e| RenderError::Device(e.to_string()))?;
+        let mut rgba = Vec::with_capacity((view.width * view.height * 4) as usize);
+        for line in mapped.chunks(row as usize).take(view.height as usize) {
+            rgba.extend_from_slice(&line[..(view.width * 4) as usize]);
+        }
+        drop(mapped);
+        readback.unmap();
+        Ok(Frame { width: view.width, height: view.height, rgba })
+    }
+}
+
+fn srgb_to_linear(c: f64) -> f64 {
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
+fn vector(p: &[f32; 3]) -> Vector3<f64> {
+    Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]))
+}
+
+/// Each node's frame normal, carried along the yarn by parallel transport
+/// (each step rotates it by the turn from one segment to the next), so the
+/// tube's rings do not twist. Degenerate segments keep the previous frame.
+pub fn transport_normals(positions: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    let tangents: Vec<Vector3<f64>> = positions
+        .windows(2)
+        .map(|w| (vector(&w[1]) - vector(&w[0])).try_normalize(1e-12).unwrap_or_else(Vector3::x))
+        .collect();
+    let first = tangents.first().copied().unwrap_or_else(Vector3::x);
+    // Any unit vector perpendicular to the first tangent.
+    let helper = if first.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let mut normal = (helper - first * helper.dot(&first)).normalize();
+    let mut normals = Vec::with_capacity(positions.len());
+    normals.push(normal);
+    for w in tangents.windows(2) {
+        let axis = w[0].cross(&w[1]);
+        let sin = axis.norm();
+        if sin > 1e-12 {
+            let rotation =
+                nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(axis), sin.atan2(w[0].dot(&w[1])));
+            normal = rotation * normal;
+        }
+        normals.push(normal);
+    }
+    normals.push(normal);
+    normals.into_iter().map(|n| [n.x as f32, n.y as f32, n.z as f32]).collect()
+}
+
+/// The camera that frames `positions`' bounds from `view`'s angles.
+fn camera(positions: &[[f32; 3]], radius: f32, view: &View) -> Camera {
+    let (low, high) = positions
+        .iter()
+        .map(vector)
+        .fold((Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)), |(low, high), p| {
+            (low.inf(&p), high.sup(&p))
+        });
+    let centre = (low + high) / 2.0;
+    let fovy = 35f64.to_radians();
+    let aspect = f64::from(view.width) / f64::from(view.height);
+    let (orbit, elevation) = (f64::from(view.orbit), f64::from(view.elevation));
+    let direction = Vector3::new(elevation.cos() * orbit.sin(), elevation.sin(), elevation.cos() * orbit.cos());
+    let right = Vector3::y().cross(&direction).try_normalize(1e-12).unwrap_or_else(Vector3::x);
+    let up = direction.cross(&right);
+    // The bounding box's half extents across and up the image, and in depth.
+    let pad = f64::from(radius);
+    let corners = (0..8).map(|k| {
+        Vector3::new(
+            if k & 1 == 0 { low.x } else { high.x },
+            if k & 2 == 0 { low.y } else { high.y },
+            if k & 4 == 0 { low.z } else { high.z },
+        ) - centre
+    });
+    let extent = |axis: &Vector3<f64>| corners.clone().map(|c| c.dot(axis).abs()).fold(0.0, f64::max) + pad;
+    let (across, upward, reach) = (extent(&right), extent(&up), extent(&direction));
+    // Far enough that the box fits both fields of view, with a margin.
+    let tan_y = (fovy / 2.0).tan();
+    let distance = reach + 1.08 * (upward / tan_y).max(across / (aspect * tan_y));
+    let eye = centre + direction * distance;
+    let look = Matrix4::look_at_rh(&Point3::from(eye), &Point3::from(centre), &Vector3::y());
+    let depth_reach = (high - low).norm() / 2.0 + pad;
+    let projection =
+        Perspective3::new(aspect, fovy, (distance - depth_reach).max(1e-3 * distance), distance + depth_reach);
+    // OpenGL's depth range [−1, 1] to wgpu's [0, 1].
+    let depth = Matrix4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.0, 0.0, 0.0, 1.0);
+    let view_proj = (depth * projection.as_matrix() * look).cast::<f32>();
+    let light = Vector3::new(-0.4, 0.7, 0.6) + direction * 0.5;
+    Camera {
+        view_proj: view_proj.into(),
+        eye: [eye.x as f32, eye.y as f32, eye.z as f32],
+        radius,
+        light: [light.x as f32, light.y as f32, light.z as f32],
+        segments: (positions.len() - 1) as u32,
+    }
+}
+
+/// The tube through `positions` as a Wavefront OBJ mesh: [`SIDES`] vertices
+/// a node around its transported frame, quads (as triangle pairs) between
+/// neighbouring rings, and flat caps at the two ends. Blender and most
+/// tools open it as is.
+pub fn tube_obj(positions: &[[f32; 3]], radius: f32) -> String {
+    let normals = transport_normals(positions);
+    let mut obj = String::from("# yarnify tube mesh\no yarn\n");
+    let sides = SIDES as usize;
+    for (i, (p, n)) in positions.iter().zip(&normals).enumerate() {
+        let before = vector(&positions[i.saturating_sub(1)]);
+        let after = vector(&positions[(i + 1).min(positions.len() - 1)]);
+        let t = (after - before).try_normalize(1e-12).unwrap_or_else(Vector3::x);
+        let n = vector(n);
+        let n = (n - t * n.dot(&t)).try_normalize(1e-12).unwrap_or(n);
+        let b = t.cross(&n);
+        for k in 0..sides {
+            let angle = std::f64::consts::TAU * k as f64 / sides as f64;
+            let v = vector(p) + (n * angle.cos() + b * angle.sin()) * f64::from(radius);
+            // Writing to a String cannot fail.
+            let _ = writeln!(obj, "v {:.5} {:.5} {:.5}", v.x, v.y, v.z);
+        }
+    }
+    let ring = |i: usize, k: usize| i * sides + k % sides + 1;
+    for i in 0..positions.len().saturating_sub(1) {
+        for k in 0..sides {
+            let (a, b, c, d) = (ring(i, k), ring(i, k + 1), ring(i + 1, k + 1), ring(i + 1, k));
+            let _ = writeln!(obj, "f {a} {b} {c}\nf {a} {c} {d}");
+        }
+    }
+    for i in [0, positions.len() - 1] {
+        let cap: Vec<String> = (0..sides).map(|k| ring(i, k).to_string()).collect();
+        let _ = writeln!(obj, "f {}", cap.join(" "));
+    }
+    obj
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shader_validates_and_its_camera_matches() {
+        let module = naga::front::wgsl::parse_str(SHADER).expect("parses");
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
+            .validate(&module)
+            .expect("validates");
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).expect("layout");
+        let (handle, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some("Camera")).expect("Camera");
+        assert_eq!(layouter[handle].size as usize, std::mem::size_of::<Camera>());
+        let naga::TypeInner::Struct { members, .. } = &ty.inner else { panic!("Camera is a struct") };
+        let offsets: Vec<u32> = members.iter().map(|m| m.offset).collect();
+        assert_eq!(offsets, [0, 64, 76, 80, 92]);
+        assert_eq!(
+            [
+                std::mem::offset_of!(Camera, view_proj),
+                std::mem::offset_of!(Camera, eye),
+                std::mem::offset_of!(Camera, radius),
+                std::mem::offset_of!(Camera, light),
+                std::mem::offset_of!(Camera, segments),
+            ]
+            .map(|o| o as u32),
+            offsets.as_slice()
+        );
+        assert!(SHADER.contains(&format!("const SIDES: u32 = {SIDES}u;")));
+    }
+
+    #[test]
+    fn transported_normals_stay_perpendicular_and_do_not_twist_on_a_helix() {
+        // A helix: constant curvature and torsion, so a twist-free frame
+        // rotates at a steady rate and stays unit and perpendicular.
+        let positions: Vec<[f32; 3]> =
+            (0..200).map(|i| i as f32 * 0.1).map(|t| [t.cos() * 3.0, t.sin() * 3.0, t * 0.5]).collect();
+        let normals = transport_normals(&positions);
+        for (i, n) in normals.iter().enumerate().take(positions.len() - 1) {
+            let n = vector(n);
+            let t = (vector(&positions[i + 1]) - vector(&positions[i])).normalize();
+            assert!((n.norm() - 1.0).abs() < 1e-5, "node {i}: |n| = {}", n.norm());
+            // Perpendicular to the incoming or outgoing segment (the frame
+            // is transported per segment).
+            assert!(n.dot(&t).abs() < 1e-4 || i == 0, "node {i}: n·t = {}", n.dot(&t));
+        }
+        // A straight line keeps its normal exactly.
+        let line: Vec<[f32; 3]> = (0..10).map(|i| [i as f32, 0.0, 0.0]).collect();
+        let normals = transport_normals(&line);
+        assert!(normals.windows(2).all(|w| w[0] == w[1]));
+    }
+
+    #[test]
+    fn obj_has_a_ring_per_node_and_two_triangles_per_side_per_segment() {
+        let positions: Vec<[f32; 3]> = (0..5).map(|i| [i as f32, (i as f32).sin(), 0.0]).collect();
+        let obj = tube_obj(&positions, 0.5);
+        let count = |prefix: &str| obj.lines().filter(|l| l.starts_with(prefix)).count();
+        assert_eq!(count("v "), 5 * SIDES as usize);
+        assert_eq!(count("f "), 4 * SIDES as usize * 2 + 2);
+        // Every face index points at a vertex.
+        let max = obj
+            .lines()
+            .filter(|l| l.starts_with("f "))
+            .flat_map(|l| l[2..].split(' ').map(|i| i.parse::<usize>().expect("index")))
+            .max()
+            .expect("faces");
+        assert_eq!(max, 5 * SIDES as usize);
+    }
+
+    #[test]
+    fn coverage_counts_non_background_pixels() {
+        let mut frame = Frame { width: 2, height: 2, rgba: BACKGROUND.repeat(4) };
+        assert_eq!(frame.coverage(), 0.0);
+        frame.rgba[4..8].copy_from_slice(&[200, 80, 60, 255]);
+        assert_eq!(frame.coverage(), 0.25);
+    }
+}

@@ -1,0 +1,63 @@
+//! Rendering on a real adapter: a patch fills the frame with yarn, and a
+//! degenerate one does not. Skips, loudly, only when there is no adapter
+//! and `CI` is unset.
+
+use std::sync::{Arc, OnceLock};
+
+use yarn_backend_wgpu::Gpu;
+use yarn_render::{BACKGROUND, RenderError, Renderer, View};
+use yarn_topology::{Chart, Fabric, Geometry};
+
+fn renderer() -> Option<&'static Renderer> {
+    static RENDERER: OnceLock<Option<Renderer>> = OnceLock::new();
+    RENDERER
+        .get_or_init(|| match Gpu::new() {
+            Ok(gpu) => Some(Renderer::new(&Arc::clone(&gpu))),
+            Err(e) if std::env::var_os("CI").is_none() => {
+                eprintln!("SKIPPING render test: {e}");
+                None
+            }
+            Err(e) => panic!("CI is set, so the GPU tests must run, but: {e}"),
+        })
+        .as_ref()
+}
+
+fn patch(w: usize, h: usize) -> (Vec<[f32; 3]>, f32) {
+    let fabric = Fabric::from_chart(&Chart::stockinette(w, h).expect("size"), &Geometry::default()).expect("chart");
+    let positions = fabric.positions().iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
+    (positions, fabric.yarn_radius() as f32)
+}
+
+const SMALL: View = View { width: 320, height: 240, orbit: 0.0, elevation: 0.35 };
+
+#[test]
+fn a_patch_covers_the_frame_and_a_degenerate_one_does_not() {
+    let Some(renderer) = renderer() else { return };
+    let (positions, radius) = patch(6, 6);
+    let frame = renderer.render(&positions, radius, &SMALL).expect("render");
+    assert_eq!(frame.rgba.len(), 320 * 240 * 4);
+    let coverage = frame.coverage();
+    assert!(coverage > 0.15 && coverage < 0.95, "a framed patch should fill much of the frame: {coverage}");
+    // Shaded, not flat: the yarn shows many distinct colours.
+    let mut colours: Vec<[u8; 4]> = frame.rgba.chunks_exact(4).map(|p| [p[0], p[1], p[2], p[3]]).collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert!(colours.len() > 50, "only {} colours", colours.len());
+    // Every node in one place: the camera frames a single tube cross-section
+    // at most, never a fabric; a tiny radius leaves the frame nearly blank.
+    let collapsed = vec![[1.0, 2.0, 3.0]; positions.len()];
+    let blank = renderer.render(&collapsed, 1e-4, &SMALL).expect("render");
+    assert!(blank.coverage() < 0.02, "a degenerate yarn covered {}", blank.coverage());
+    assert!(blank.rgba.chunks_exact(4).any(|p| p == BACKGROUND));
+}
+
+#[test]
+fn bad_input_is_refused() {
+    let Some(renderer) = renderer() else { return };
+    assert!(matches!(renderer.render(&[[0.0; 3]], 1.0, &SMALL), Err(RenderError::TooFewNodes(1))));
+    let bad = [[0.0, 0.0, 0.0], [f32::NAN, 0.0, 0.0]];
+    assert!(matches!(renderer.render(&bad, 1.0, &SMALL), Err(RenderError::NotFinite { index: 1, .. })));
+    let (positions, radius) = patch(2, 2);
+    let zero = View { width: 0, ..SMALL };
+    assert!(matches!(renderer.render(&positions, radius, &zero), Err(RenderError::BadSize { .. })));
+}
