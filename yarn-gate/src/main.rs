@@ -10,6 +10,7 @@ use yarn_gate::GateError;
 use yarn_gate::bench::{BenchConfig, bench, table};
 use yarn_gate::check::{CheckConfig, CheckReport, run_check};
 use yarn_gate::gpucheck::run_gpucheck;
+use yarn_gate::plotdata as plot;
 use yarn_model::{Backend, Params, widen};
 use yarn_render::{Renderer, View, tube_obj};
 use yarn_topology::{Chart, Fabric, Geometry};
@@ -36,6 +37,32 @@ enum Command {
     /// Relax a patch, then draw its yarn as tubes into a PNG (and
     /// optionally a Wavefront OBJ mesh).
     Render(RenderArgs),
+    /// Measure the data behind the paper's figures 2-4 and write a CSV and
+    /// a PNG plot for each.
+    Plotdata(PlotdataArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct PlotdataArgs {
+    /// Folder to write the CSV and PNG files into (created if missing).
+    #[arg(long, default_value = "figures")]
+    out: std::path::PathBuf,
+    /// Backend for figures 2 and 3 (see `check --help`).
+    #[arg(long, default_value = "rayon")]
+    backend: String,
+    /// Patch size for figures 2 and 3, WIDTHxHEIGHT.
+    #[arg(long, default_value = "16x16", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Substeps of free relaxation (figure 2).
+    #[arg(long, default_value_t = 12_000)]
+    steps: u64,
+    /// Substeps each stiffness probe holds (figure 3).
+    #[arg(long, default_value_t = 6_000)]
+    pull_steps: u64,
+    /// Backends for figure 4, comma-separated; a GPU one is left out, with
+    /// a warning, when there is no adapter.
+    #[arg(long, value_delimiter = ',', default_value = "serial-f32,rayon,wgpu")]
+    scaling: Vec<String>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -210,6 +237,48 @@ fn run_bench(args: &BenchArgs) -> Result<Vec<yarn_gate::bench::BenchRow>, GateEr
     Ok(rows)
 }
 
+/// Measure and write the three figures; returns the files written.
+fn plotdata(args: &PlotdataArgs) -> Result<Vec<std::path::PathBuf>, GateError> {
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| GateError::Io { path: args.out.display().to_string(), reason: e.to_string() })?;
+    let bar = progress_bar(0, "{msg:>12} [{bar:40}] {pos}/{len} substeps ({eta})");
+    let mut progress = |phase: &'static str, done: u64, total: u64| {
+        bar.set_message(phase);
+        bar.set_length(total);
+        bar.set_position(done);
+    };
+    let (relaxation, probes) = with_backend!(args.backend.as_str(), 0, backend => {
+        let mut backend = backend;
+        plot::measure(&mut backend, args.size, args.steps, args.pull_steps, &mut progress)
+    })?;
+    bar.finish_and_clear();
+    let mut written = Vec::new();
+    written.extend(plot::figure2(&args.out, &relaxation)?);
+    written.extend(plot::figure3(&args.out, &probes)?);
+    let config = BenchConfig { sides: vec![8, 16, 32, 64], repeats: 3, work_per_run: 2_000_000 };
+    let mut rows = Vec::new();
+    for name in &args.scaling {
+        let bar = progress_bar(0, "{msg:>12} [{bar:40}] {pos}/{len} timed runs");
+        bar.set_message(name.clone());
+        let mut progress = |done, total| {
+            bar.set_length(total);
+            bar.set_position(done);
+        };
+        let measured = with_backend!(name.as_str(), 0, backend => {
+            let mut backend = backend;
+            bench(&mut backend, &config, &mut progress)
+        });
+        bar.finish_and_clear();
+        match measured {
+            Ok(measured) => rows.extend(measured),
+            Err(GateError::Gpu(e)) => eprintln!("figure 4 leaves out {name}: {e}"),
+            Err(e) => return Err(e),
+        }
+    }
+    written.extend(plot::figure4(&args.out, &rows)?);
+    Ok(written)
+}
+
 /// Relax, draw, save; returns the coverage.
 fn render(args: &RenderArgs) -> Result<f64, GateError> {
     let fabric = Fabric::from_chart(&Chart::stockinette(args.size.0, args.size.1)?, &Geometry::default())?;
@@ -262,6 +331,18 @@ fn relax<B: Backend>(
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Plotdata(args) => match plotdata(&args) {
+            Ok(written) => {
+                for path in written {
+                    println!("wrote {}", path.display());
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::from(2)
+            }
+        },
         Command::Render(args) => match render(&args) {
             Ok(coverage) => {
                 println!("wrote {} ({:.1} % of the frame is yarn)", args.out.display(), 100.0 * coverage);

@@ -181,3 +181,28 @@ fn cli_render_writes_a_png_and_an_obj() {
     assert_eq!(mesh.lines().filter(|l| l.starts_with("v ")).count(), 96 * 7);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `plotdata` writes the three CSV + PNG pairs, with the rows they promise.
+#[test]
+fn cli_plotdata_writes_three_figures() {
+    let dir = std::env::temp_dir().join(format!("yarnify-plotdata-{}", std::process::id()));
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
+        .args(["plotdata", "--size", "4x4", "--steps", "400", "--pull-steps", "100", "--scaling", "serial-f32,rayon"])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    for figure in ["fig2_energy", "fig3_stiffness", "fig4_scaling"] {
+        let png = std::fs::read(dir.join(format!("{figure}.png"))).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{figure}");
+    }
+    let lines = |name: &str| std::fs::read_to_string(dir.join(name)).unwrap().lines().count();
+    // Samples every 2 substeps of 400 (one every steps/200), plus the header.
+    assert_eq!(lines("fig2_energy.csv"), 202);
+    // Four strains on each axis.
+    assert_eq!(lines("fig3_stiffness.csv"), 9);
+    // Two backends at four sizes.
+    assert_eq!(lines("fig4_scaling.csv"), 9);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
