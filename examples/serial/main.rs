@@ -7,7 +7,11 @@ use yarn_backend_cpu::Serial;
 use yarn_model::{Params, Simulation};
 use yarn_topology::{Chart, Fabric, Geometry};
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> std::process::ExitCode {
+    yarnify_examples::main_with(run)
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     // A 16x16 stitch chart of plain knit becomes one serpentine yarn of
     // 2048 nodes with 480 persistent contacts.
     let chart = Chart::stockinette(16, 16)?;
@@ -30,7 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             energy.contact,
             sim.state()?.max_speed()
         );
-        sim.advance(2000)?;
+        sim.advance(yarnify_examples::substeps(2000))?;
     }
     Ok(())
 }

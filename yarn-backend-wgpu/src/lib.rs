@@ -48,6 +48,7 @@ use std::sync::Arc;
 use bytemuck::Pod;
 pub use gpu::{Gpu, GpuError};
 use layout::{FRICTION_ON, GpuContact, GpuParams, GpuPin};
+pub use wgpu;
 use wgpu::util::DeviceExt;
 use yarn_model::terms::MIN_SIN_THETA;
 use yarn_model::{Backend, BackendError, Model, Params, State, V3};
@@ -112,6 +113,14 @@ impl Wgpu {
     /// The accumulation mode.
     pub fn mode(&self) -> Mode {
         self.mode
+    }
+
+    /// The buffer holding the current positions on the GPU, one
+    /// `vec4<f32>` per node (xyz, w unused), for drawing without a copy to
+    /// the CPU (`yarn_render::Renderer::render_gpu`). `None` before load.
+    /// Valid until the next call that changes the state.
+    pub fn positions(&self) -> Option<&wgpu::Buffer> {
+        self.loaded.as_ref().map(|l| &l.buffers.x[l.px])
     }
 
     fn loaded(&mut self) -> Result<&mut Loaded, BackendError> {

@@ -217,27 +217,67 @@ impl Renderer {
     /// Fewer than two positions, a non-finite one, a bad image size, or a
     /// GPU failure.
     pub fn render(&self, positions: &[[f32; 3]], radius: f32, view: &View) -> Result<Frame, RenderError> {
-        if positions.len() < 2 {
-            return Err(RenderError::TooFewNodes(positions.len()));
+        check(positions)?;
+        let position_buffer = self.buffer("positions", &vec4s(positions));
+        self.draw(&position_buffer, positions, radius, view)
+    }
+
+    /// Draw the yarn whose positions are already on this renderer's GPU, in
+    /// `positions` (one `vec4<f32>` per node, xyz used: the layout of
+    /// `yarn_backend_wgpu::Wgpu::positions`), so nothing comes back to the
+    /// CPU. `reference` is the same yarn in a shape known here, such as its
+    /// rest shape: it sets the tube frames (re-squared to the current
+    /// tangents in the shader) and the framing.
+    ///
+    /// # Errors
+    /// As [`Renderer::render`], for `reference`; and a buffer too small for
+    /// it.
+    pub fn render_gpu(
+        &self,
+        positions: &wgpu::Buffer,
+        reference: &[[f32; 3]],
+        radius: f32,
+        view: &View,
+    ) -> Result<Frame, RenderError> {
+        check(reference)?;
+        if positions.size() < reference.len() as u64 * 16 {
+            return Err(RenderError::Device(format!(
+                "the position buffer holds {} bytes, too few for {} nodes",
+                positions.size(),
+                reference.len()
+            )));
         }
-        if let Some((index, &value)) = positions.iter().enumerate().find(|(_, p)| p.iter().any(|c| !c.is_finite())) {
-            return Err(RenderError::NotFinite { index, value });
-        }
+        self.draw(positions, reference, radius, view)
+    }
+
+    fn buffer(&self, label: &str, data: &[[f32; 4]]) -> wgpu::Buffer {
+        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::cast_slice(data),
+            usage: wgpu::BufferUsages::STORAGE,
+        })
+    }
+
+    /// Draw `position_buffer` with frames and framing from `shape`.
+    fn draw(
+        &self,
+        position_buffer: &wgpu::Buffer,
+        shape: &[[f32; 3]],
+        radius: f32,
+        view: &View,
+    ) -> Result<Frame, RenderError> {
         let limit = self.device.limits().max_texture_dimension_2d;
         if !(1..=limit).contains(&view.width) || !(1..=limit).contains(&view.height) {
             return Err(RenderError::BadSize { width: view.width, height: view.height, limit });
         }
-        let normals = transport_normals(positions);
-        let camera = camera(positions, radius, view);
+        let camera = camera(shape, radius, view);
         let device = &self.device;
-        let buffer = |label, contents: &[u8], usage| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
-        };
-        let storage = wgpu::BufferUsages::STORAGE;
-        let to_vec4 = |v: &[[f32; 3]]| v.iter().map(|p| [p[0], p[1], p[2], 0.0]).collect::<Vec<[f32; 4]>>();
-        let camera_buffer = buffer("camera", bytemuck::bytes_of(&camera), wgpu::BufferUsages::UNIFORM);
-        let position_buffer = buffer("positions", bytemuck::cast_slice(&to_vec4(positions)), storage);
-        let normal_buffer = buffer("normals", bytemuck::cast_slice(&to_vec4(&normals)), storage);
+        let camera_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("camera"),
+            contents: bytemuck::bytes_of(&camera),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let normal_buffer = self.buffer("normals", &vec4s(&transport_normals(shape)));
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("yarn"),
             layout: &self.layout,
@@ -299,7 +339,7 @@ impl Renderer {
             });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &group, &[]);
-            pass.draw(0..SIDES * 6, 0..(positions.len() - 1) as u32);
+            pass.draw(0..SIDES * 6, 0..(shape.len() - 1) as u32);
         }
         encoder.copy_texture_to_buffer(
             resolved.as_image_copy(),
@@ -331,6 +371,21 @@ impl Renderer {
         readback.unmap();
         Ok(Frame { width: view.width, height: view.height, rgba })
     }
+}
+
+/// At least two nodes, all finite.
+fn check(positions: &[[f32; 3]]) -> Result<(), RenderError> {
+    if positions.len() < 2 {
+        return Err(RenderError::TooFewNodes(positions.len()));
+    }
+    match positions.iter().enumerate().find(|(_, p)| p.iter().any(|c| !c.is_finite())) {
+        Some((index, &value)) => Err(RenderError::NotFinite { index, value }),
+        None => Ok(()),
+    }
+}
+
+fn vec4s(v: &[[f32; 3]]) -> Vec<[f32; 4]> {
+    v.iter().map(|p| [p[0], p[1], p[2], 0.0]).collect()
 }
 
 fn srgb_to_linear(c: f64) -> f64 {

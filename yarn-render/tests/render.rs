@@ -61,3 +61,48 @@ fn bad_input_is_refused() {
     let zero = View { width: 0, ..SMALL };
     assert!(matches!(renderer.render(&positions, radius, &zero), Err(RenderError::BadSize { .. })));
 }
+
+/// Drawing straight from the GPU backend's buffer gives the picture that
+/// drawing its read-back positions gives.
+#[test]
+fn positions_on_the_gpu_draw_like_positions_read_back() {
+    use yarn_backend_wgpu::{Mode, Wgpu};
+    use yarn_model::{Backend, Params};
+    let Ok(gpu) = Gpu::new() else {
+        assert!(std::env::var_os("CI").is_none(), "CI is set, so the GPU tests must run");
+        eprintln!("SKIPPING render test: no adapter");
+        return;
+    };
+    let renderer = Renderer::new(&gpu);
+    let fabric = Fabric::from_chart(&Chart::stockinette(5, 4).expect("size"), &Geometry::default()).expect("chart");
+    let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
+    backend.load(&fabric, &Params::default()).expect("load");
+    backend.advance(300).expect("advance");
+    let rest: Vec<[f32; 3]> = fabric.positions().iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
+    let radius = fabric.yarn_radius() as f32;
+    let on_gpu = renderer.render_gpu(backend.positions().expect("loaded"), &rest, radius, &SMALL).expect("render");
+    let now: Vec<[f32; 3]> = backend.state().expect("state").positions.iter().map(|p| [p.x, p.y, p.z]).collect();
+    assert_ne!(now, rest, "the fabric must have moved for this to mean anything");
+    // The same frames and framing, from the rest shape, over the read-back
+    // positions: the path differs only in where the positions come from.
+    let position_buffer = {
+        use yarn_backend_wgpu::wgpu::util::DeviceExt;
+        let data: Vec<[f32; 4]> = now.iter().map(|p| [p[0], p[1], p[2], 0.0]).collect();
+        gpu.device().create_buffer_init(&yarn_backend_wgpu::wgpu::util::BufferInitDescriptor {
+            label: None,
+            contents: bytemuck::cast_slice(&data),
+            usage: yarn_backend_wgpu::wgpu::BufferUsages::STORAGE,
+        })
+    };
+    let read_back = renderer.render_gpu(&position_buffer, &rest, radius, &SMALL).expect("render");
+    assert_eq!(on_gpu, read_back);
+    assert!(on_gpu.coverage() > 0.1, "{}", on_gpu.coverage());
+    // And a buffer too small for the reference is refused.
+    let small = gpu.device().create_buffer(&yarn_backend_wgpu::wgpu::BufferDescriptor {
+        label: None,
+        size: 16,
+        usage: yarn_backend_wgpu::wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    assert!(matches!(renderer.render_gpu(&small, &rest, radius, &SMALL), Err(RenderError::Device(_))));
+}

@@ -1,0 +1,85 @@
+//! Every example runs, briefly (`YARNIFY_EXAMPLE_QUICK`), and says or
+//! writes what it promises, so none can rot. `cargo test` builds the
+//! examples before it runs this; they sit in `target/<profile>/examples/`.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn run(name: &str, args: &[&str]) -> Output {
+    // This test runs from target/<profile>/deps/.
+    let exe = std::env::current_exe().expect("the test's own path");
+    let profile = exe.parent().and_then(|deps| deps.parent()).expect("target/<profile>/deps/");
+    let binary: PathBuf = profile.join("examples").join(name);
+    assert!(binary.exists(), "{} was not built", binary.display());
+    Command::new(binary).args(args).env("YARNIFY_EXAMPLE_QUICK", "1").output().expect("the example starts")
+}
+
+fn stdout(output: &Output) -> String {
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    String::from_utf8_lossy(&output.stdout).into_owned()
+}
+
+/// GPU examples may skip, loudly, only without an adapter and without CI.
+fn gpu_missing(output: &Output) -> bool {
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let missing = !output.status.success() && stderr.contains("no GPU adapter");
+    if missing {
+        assert!(std::env::var_os("CI").is_none(), "CI is set, so the GPU examples must run: {stderr}");
+        eprintln!("SKIPPING a GPU example: {stderr}");
+    }
+    missing
+}
+
+fn temp(name: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("yarnify-example-{}-{name}", std::process::id()))
+}
+
+#[test]
+fn serial_prints_the_energy_falling() {
+    let out = stdout(&run("serial", &[]));
+    assert!(out.starts_with("2048 nodes, 480 contacts"), "{out}");
+    let totals: Vec<f64> =
+        out.lines().filter_map(|l| l.split("total").nth(1)?.split_whitespace().next()?.parse().ok()).collect();
+    assert_eq!(totals.len(), 7, "{out}");
+    assert!(totals.last() < totals.first(), "{totals:?}");
+}
+
+#[test]
+fn rayon_times_a_large_patch() {
+    let out = stdout(&run("rayon", &[]));
+    assert!(out.contains("of 32768 nodes on") && out.contains("ns per node-substep"), "{out}");
+}
+
+#[test]
+fn wgpu_runs_both_modes() {
+    let output = run("wgpu", &[]);
+    if gpu_missing(&output) {
+        return;
+    }
+    let out = stdout(&output);
+    assert!(out.contains("wgpu-gather") && out.contains("wgpu-fixed") && out.contains("largest gap"), "{out}");
+}
+
+#[test]
+fn render_writes_a_png() {
+    let path = temp("render.png");
+    let output = run("render", &[path.to_str().unwrap()]);
+    if gpu_missing(&output) {
+        return;
+    }
+    assert!(stdout(&output).contains("of the frame is yarn"));
+    assert_eq!(&std::fs::read(&path).unwrap()[..8], b"\x89PNG\r\n\x1a\n");
+    std::fs::remove_file(path).unwrap();
+}
+
+#[test]
+fn drape_pins_a_row_and_writes_an_obj() {
+    let path = temp("drape.obj");
+    let out = stdout(&run("drape", &[path.to_str().unwrap()]));
+    assert!(out.contains("pinned 160 nodes of 2560"), "{out}");
+    let drop: f64 = out.split("hangs ").nth(1).unwrap().split_whitespace().next().unwrap().parse().unwrap();
+    assert!(drop > 0.0, "gravity must pull the fabric down: {out}");
+    let mesh = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(mesh.lines().filter(|l| l.starts_with("v ")).count(), 2560 * 7);
+    std::fs::remove_file(path).unwrap();
+}
