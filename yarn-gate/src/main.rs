@@ -253,7 +253,7 @@ fn plotdata(args: &PlotdataArgs) -> Result<Vec<std::path::PathBuf>, GateError> {
     })?;
     bar.finish_and_clear();
     let mut written = Vec::new();
-    written.extend(plot::figure2(&args.out, &relaxation)?);
+    written.extend(plot::figure2(&args.out, &relaxation, Params::gate().substep)?);
     written.extend(plot::figure3(&args.out, &probes)?);
     let config = BenchConfig { sides: vec![8, 16, 32, 64], repeats: 3, work_per_run: 2_000_000 };
     let mut rows = Vec::new();

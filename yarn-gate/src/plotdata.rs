@@ -78,14 +78,15 @@ pub fn measure<B: Backend>(
     Ok((relaxation, probes))
 }
 
-/// Figure 2: `fig2_energy.csv` and `.png` in `dir`.
+/// Figure 2: `fig2_energy.csv` and `.png` in `dir`, for a relaxation run
+/// at substep `h` seconds.
 ///
 /// # Errors
 /// When a file cannot be written.
-pub fn figure2(dir: &Path, relaxation: &Relaxation) -> Result<[PathBuf; 2], GateError> {
+pub fn figure2(dir: &Path, relaxation: &Relaxation, h: f64) -> Result<[PathBuf; 2], GateError> {
     let mut csv = String::from("substep,time_s,total_energy,bending_energy\n");
     for s in &relaxation.trace {
-        let _ = writeln!(csv, "{},{:.6},{:.6},{:.6}", s.substep, s.substep as f64 / 1500.0, s.total, s.bend);
+        let _ = writeln!(csv, "{},{:.6},{:.6},{:.6}", s.substep, s.substep as f64 * h, s.total, s.bend);
     }
     let (csv_path, png_path) = (dir.join("fig2_energy.csv"), dir.join("fig2_energy.png"));
     std::fs::write(&csv_path, csv).map_err(|e| io(&csv_path, e))?;
@@ -96,7 +97,7 @@ pub fn figure2(dir: &Path, relaxation: &Relaxation) -> Result<[PathBuf; 2], Gate
         &png_path,
         Plot {
             title: "Figure 2: energy over the free relaxation",
-            labels: ("substep (h = 1/1500 s)", "energy, model units (log scale)"),
+            labels: (&format!("substep (h = {h:.3e} s)"), "energy, model units (log scale)"),
             ranges: (0.0..steps, (low * 0.8).max(1e-9)..high * 1.25),
             log: (false, true),
             legend: SeriesLabelPosition::UpperRight,
@@ -316,7 +317,7 @@ mod tests {
             })
             .collect();
         let relaxation = Relaxation { trace, peak_speed: 2.0 };
-        let [csv, png] = figure2(&dir, &relaxation).unwrap();
+        let [csv, png] = figure2(&dir, &relaxation, 1.0 / 1500.0).unwrap();
         let text = std::fs::read_to_string(csv).unwrap();
         assert_eq!(text.lines().count(), 12);
         assert!(text.lines().nth(11).unwrap().starts_with("1000,0.666667,90.909091,60.000000"));
