@@ -23,6 +23,11 @@ struct Params {
     // Fixed-point scale S and the largest force it quantises safely.
     scale: f32,
     max_force: f32,
+    // Always 1.0; see `mul`.
+    one: f32,
+    pad0: f32,
+    pad1: f32,
+    pad2: f32,
 }
 
 // Mirrors `GpuContact`.
@@ -48,27 +53,60 @@ fn thread_index(group: vec3<u32>, local: vec3<u32>, groups: vec3<u32>) -> u32 {
     return (group.y * groups.x + group.x) * WORKGROUP + local.x;
 }
 
+// The CPU rounds every product, sum, square root and quotient on its own.
+// A GPU compiler may fuse a product into the add that follows, and its
+// `sqrt` and division may be off by an ulp or two; either moves a segment's
+// length by an ulp, which k_s turns into a force error the size of the
+// tolerance. So the formulas below round as the CPU does:
+// - `mul`: a product times the uniform `p.one` (always 1.0), which the
+//   compiler cannot see through, so the rounded product is what any fused
+//   add receives;
+// - `sqrt_rounded`, `div_rounded`: one correction step with the exact
+//   residual from `fma`, which lands on the correctly rounded result.
+fn mul(a: f32, b: f32) -> f32 {
+    return a * b * p.one;
+}
+
+fn mul3(a: vec3<f32>, b: f32) -> vec3<f32> {
+    return a * b * p.one;
+}
+
+fn sqrt_rounded(x: f32) -> f32 {
+    let s = sqrt(x);
+    return select(s, fma(fma(-s, s, x), 0.5 / s, s), s > 0.0);
+}
+
+// For b ≠ 0.
+fn div_rounded(a: f32, b: f32) -> f32 {
+    let q = a / b;
+    return fma(fma(-q, b, a), 1.0 / b, q);
+}
+
+fn norm(d: vec3<f32>) -> f32 {
+    return sqrt_rounded(mul(d.x, d.x) + mul(d.y, d.y) + mul(d.z, d.z));
+}
+
 // Abramowitz & Stegun 4.4.46, as `Real::turning_angle` for f32.
 fn turning_angle(c: f32) -> f32 {
     let x = abs(c);
     var q = -0.0012624911;
-    q = q * x + 0.0066700901;
-    q = q * x + -0.0170881256;
-    q = q * x + 0.0308918810;
-    q = q * x + -0.0501743046;
-    q = q * x + 0.0889789874;
-    q = q * x + -0.2145988016;
-    q = q * x + 1.5707963050;
-    let angle = sqrt(max(1.0 - x, 0.0)) * q;
+    q = mul(q, x) + 0.0066700901;
+    q = mul(q, x) + -0.0170881256;
+    q = mul(q, x) + 0.0308918810;
+    q = mul(q, x) + -0.0501743046;
+    q = mul(q, x) + 0.0889789874;
+    q = mul(q, x) + -0.2145988016;
+    q = mul(q, x) + 1.5707963050;
+    let angle = mul(sqrt_rounded(max(1.0 - x, 0.0)), q);
     return select(angle, 3.14159265358979 - angle, c < 0.0);
 }
 
 // `terms::spring_force`: the force on `a` of a spring from a to b = a + d.
 fn spring_force(d: vec3<f32>, rest: f32, k: f32) -> vec3<f32> {
-    let length = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+    let length = norm(d);
     let positive = length > 0.0;
-    let scale = k * (length - rest) / select(1.0, length, positive);
-    return select(vec3<f32>(0.0), d * scale, positive);
+    let scale = div_rounded(k * (length - rest), select(1.0, length, positive));
+    return select(vec3<f32>(0.0), mul3(d, scale), positive);
 }
 
 // A segment's unit tangent and inverse length (both zero when degenerate).
@@ -78,9 +116,9 @@ struct Segment {
 }
 
 fn segment_of(d: vec3<f32>) -> Segment {
-    let length = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-    let inv = select(0.0, 1.0 / length, length > 0.0);
-    return Segment(d * inv, inv);
+    let length = norm(d);
+    let inv = select(0.0, div_rounded(1.0, select(1.0, length, length > 0.0)), length > 0.0);
+    return Segment(mul3(d, inv), inv);
 }
 
 // `terms::bend_forces` from a joint's two segments: the forces on its first
@@ -93,23 +131,27 @@ struct JointForces {
 fn joint_forces(s0: Segment, s1: Segment, rest_angle: f32, k: f32, min_sin: f32) -> JointForces {
     let u = s0.tangent;
     let v = s1.tangent;
-    let s = clamp(u.x * v.x + u.y * v.y + u.z * v.z, -1.0, 1.0);
-    let sin_theta = sqrt(1.0 - s * s);
+    let s = clamp(mul(u.x, v.x) + mul(u.y, v.y) + mul(u.z, v.z), -1.0, 1.0);
+    let sin_theta = sqrt_rounded(1.0 - mul(s, s));
     let keep = sin_theta >= min_sin && s0.inv_length > 0.0 && s1.inv_length > 0.0;
-    let coeff = select(0.0, k * (turning_angle(s) - rest_angle) / select(1.0, sin_theta, keep), keep);
-    return JointForces((v - u * s) * (-coeff * s0.inv_length), (u - v * s) * (coeff * s1.inv_length));
+    let coeff = select(0.0, div_rounded(k * (turning_angle(s) - rest_angle), select(1.0, sin_theta, keep)), keep);
+    return JointForces(
+        mul3(v - mul3(u, s), -coeff * s0.inv_length),
+        mul3(u - mul3(v, s), coeff * s1.inv_length),
+    );
 }
 
 // `step::friction_change`: the change Δw to w = v_b − v_a of a contact with
 // gap d = x_b − x_a, or zero when it is not compressed or does not slip.
-fn friction_change(d: vec3<f32>, w: vec3<f32>, rest: f32, p: Params) -> vec3<f32> {
-    let length = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+fn friction_change(d: vec3<f32>, w: vec3<f32>, rest: f32) -> vec3<f32> {
+    let length = norm(d);
     let compressed = length < rest && length > 0.0;
-    let n = d / select(1.0, length, compressed);
-    let wt = w - n * (w.x * n.x + w.y * n.y + w.z * n.z);
-    let slip = sqrt(wt.x * wt.x + wt.y * wt.y + wt.z * wt.z);
+    let divisor = select(1.0, length, compressed);
+    let n = vec3<f32>(div_rounded(d.x, divisor), div_rounded(d.y, divisor), div_rounded(d.z, divisor));
+    let wt = w - mul3(n, mul(w.x, n.x) + mul(w.y, n.y) + mul(w.z, n.z));
+    let slip = norm(wt);
     let keep = compressed && slip > 0.0;
     let dv_normal = p.friction_impulse * (rest - length);
-    let retention = max(1.0 - p.friction * dv_normal / select(1.0, slip, keep), 0.0);
-    return select(vec3<f32>(0.0), wt * (retention - 1.0), keep);
+    let retention = max(1.0 - div_rounded(p.friction * dv_normal, select(1.0, slip, keep)), 0.0);
+    return select(vec3<f32>(0.0), mul3(wt, retention - 1.0), keep);
 }

@@ -2,6 +2,8 @@
 // pass can reach on this device (`Gpu::copy_bandwidth`).
 
 @group(0) @binding(0) var<storage, read> source: array<vec4<f32>>;
+// Not used here; declared because the shared prelude's formulas read it.
+@group(0) @binding(2) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read_write> to: array<vec4<f32>>;
 
 @compute @workgroup_size(WORKGROUP)

@@ -73,10 +73,10 @@ fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     if i >= p.nodes {
         return;
     }
-    let velocity = (v[i].xyz + take_force(i) * p.h_over_m) * p.damping_factor;
+    let velocity = mul3(v[i].xyz + mul3(take_force(i), p.h_over_m), p.damping_factor);
     v[i] = vec4<f32>(velocity, 0.0);
     if (p.flags & FRICTION_ON) == 0u {
-        out[i] = vec4<f32>(x[i].xyz + velocity * p.h, 0.0);
+        out[i] = vec4<f32>(x[i].xyz + mul3(velocity, p.h), 0.0);
     }
 }
 

@@ -20,5 +20,5 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     }
     let velocity = v[i].xyz + node_friction(i);
     v_next[i] = vec4<f32>(velocity, 0.0);
-    x_next[i] = vec4<f32>(x[i].xyz + velocity * p.h, 0.0);
+    x_next[i] = vec4<f32>(x[i].xyz + mul3(velocity, p.h), 0.0);
 }

@@ -16,7 +16,7 @@
 
 // v* of node j (step 2).
 fn velocity_star(j: u32) -> vec3<f32> {
-    return (v[j].xyz + node_force(j) * p.h_over_m) * p.damping_factor;
+    return mul3(v[j].xyz + mul3(node_force(j), p.h_over_m), p.damping_factor);
 }
 
 @compute @workgroup_size(WORKGROUP)
@@ -35,11 +35,11 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
             let is_b = c.b == i;
             let other = velocity_star(select(c.b, c.a, is_b));
             let w = select(other - own, own - other, is_b);
-            let dw = friction_change(x[c.b].xyz - x[c.a].xyz, w, c.rest, p);
+            let dw = friction_change(x[c.b].xyz - x[c.a].xyz, w, c.rest);
             dv -= dw * select(0.5, -0.5, is_b);
         }
     }
     let velocity = own + dv;
     v_next[i] = vec4<f32>(velocity, 0.0);
-    x_next[i] = vec4<f32>(x[i].xyz + velocity * p.h, 0.0);
+    x_next[i] = vec4<f32>(x[i].xyz + mul3(velocity, p.h), 0.0);
 }

@@ -7,7 +7,7 @@ fn node_friction(i: u32) -> vec3<f32> {
     for (var e = start[i]; e < start[i + 1u]; e++) {
         let c = incident[e];
         if c.alive != 0u {
-            let dw = friction_change(x[c.b].xyz - x[c.a].xyz, v[c.b].xyz - v[c.a].xyz, c.rest, p);
+            let dw = friction_change(x[c.b].xyz - x[c.a].xyz, v[c.b].xyz - v[c.a].xyz, c.rest);
             dv -= dw * select(0.5, -0.5, c.b == i);
         }
     }

@@ -24,6 +24,9 @@ pub(crate) struct GpuParams {
     pub(crate) min_sin: f32,
     pub(crate) scale: f32,
     pub(crate) max_force: f32,
+    /// Always 1.0: see `mul` in `common.wgsl`.
+    pub(crate) one: f32,
+    pub(crate) pad: [f32; 3],
 }
 
 /// `Params::flags` bit: friction is on, so the move is in the friction pass.
@@ -90,6 +93,10 @@ mod tests {
             offset_of!(GpuParams, min_sin),
             offset_of!(GpuParams, scale),
             offset_of!(GpuParams, max_force),
+            offset_of!(GpuParams, one),
+            offset_of!(GpuParams, pad),
+            offset_of!(GpuParams, pad) + 4,
+            offset_of!(GpuParams, pad) + 8,
         ];
         assert_eq!(members.len(), rust.len(), "field count differs: {members:?}");
         for ((name, wgsl), rust) in members.iter().zip(rust) {

@@ -19,6 +19,10 @@
 //! the GPU to finish, so errors and timings belong to the call that caused
 //! them.
 //!
+//! The shaders round every product, square root and quotient as the CPU
+//! does (`mul`, `sqrt_rounded`, `div_rounded` in `common.wgsl`), so gather
+//! mode reproduces `Serial<f32>` bit for bit where the GPU's `fma` is exact.
+//!
 //! Only WebGPU's core features are used, so the same shaders run in a
 //! browser. The crate owns how the GPU executes the model, never what the
 //! model is: the shaders are the formulas of `yarn_model::terms`, operation
@@ -237,6 +241,8 @@ impl Loaded {
             min_sin: MIN_SIN_THETA as f32,
             scale: FIXED_POINT_SCALE,
             max_force: max_force() as f32,
+            one: 1.0,
+            pad: [0.0; 3],
         }
     }
 }
