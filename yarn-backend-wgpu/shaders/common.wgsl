@@ -46,6 +46,9 @@ struct Pin {
 
 const WORKGROUP: u32 = 128u;
 const FRICTION_ON: u32 = 1u;
+// Bit 1: the device's `fma` rounds once (`Gpu::new` probes it), so the
+// correction steps below are exact and are taken.
+const FUSED_FMA: u32 = 2u;
 
 // The global thread index of a dispatch that may be two-dimensional (a
 // fabric with more workgroups than one dimension allows).
@@ -62,7 +65,10 @@ fn thread_index(group: vec3<u32>, local: vec3<u32>, groups: vec3<u32>) -> u32 {
 //   compiler cannot see through, so the rounded product is what any fused
 //   add receives;
 // - `sqrt_rounded`, `div_rounded`: one correction step with the exact
-//   residual from `fma`, which lands on the correctly rounded result.
+//   residual from `fma`, which lands on the correctly rounded result. A
+//   device whose `fma` is not fused (lavapipe) gets no exact residual, but
+//   its `sqrt` and division are correctly rounded already: it skips the
+//   step.
 fn mul(a: f32, b: f32) -> f32 {
     return a * b * p.one;
 }
@@ -73,13 +79,13 @@ fn mul3(a: vec3<f32>, b: f32) -> vec3<f32> {
 
 fn sqrt_rounded(x: f32) -> f32 {
     let s = sqrt(x);
-    return select(s, fma(fma(-s, s, x), 0.5 / s, s), s > 0.0);
+    return select(s, fma(fma(-s, s, x), 0.5 / s, s), s > 0.0 && (p.flags & FUSED_FMA) != 0u);
 }
 
 // For b ≠ 0.
 fn div_rounded(a: f32, b: f32) -> f32 {
     let q = a / b;
-    return fma(fma(-q, b, a), 1.0 / b, q);
+    return select(q, fma(fma(-q, b, a), 1.0 / b, q), (p.flags & FUSED_FMA) != 0u);
 }
 
 fn norm(d: vec3<f32>) -> f32 {

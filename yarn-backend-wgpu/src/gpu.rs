@@ -5,6 +5,8 @@
 
 use std::sync::{Arc, Mutex, PoisonError};
 
+use wgpu::util::DeviceExt;
+
 use crate::shaders::{self, Pass};
 
 /// Why no GPU context could be made.
@@ -63,6 +65,8 @@ pub struct Gpu {
     pub(crate) device: wgpu::Device,
     pub(crate) queue: wgpu::Queue,
     pub(crate) limits: wgpu::Limits,
+    /// The device's `fma` rounds once (probed on creation).
+    pub(crate) fused_fma: bool,
     info: wgpu::AdapterInfo,
     errors: Arc<Mutex<Vec<String>>>,
     pub(crate) kernels: Kernels,
@@ -145,9 +149,63 @@ impl Gpu {
             ),
         };
         let limits = device.limits();
-        let gpu = Self { device, queue, limits, info, errors, kernels };
+        let mut gpu = Self { device, queue, limits, fused_fma: false, info, errors, kernels };
+        gpu.fused_fma =
+            gpu.probe_fma().map_err(|reason| GpuError::Device { adapter: gpu.info.name.clone(), reason })?;
         gpu.take_error().map_err(|reason| GpuError::Device { adapter: gpu.info.name.clone(), reason })?;
         Ok(Arc::new(gpu))
+    }
+
+    /// Whether `fma` rounds once on this device (`probe.wgsl`).
+    fn probe_fma(&self) -> Result<bool, String> {
+        let device = &self.device;
+        let one_ulp = 1.0 + f32::EPSILON;
+        let input = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("fma probe"),
+            contents: bytemuck::cast_slice(&[one_ulp, one_ulp, -(1.0 + 2.0 * f32::EPSILON), 0.0]),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let output = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("fma probe result"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("fma probe readback"),
+            size: 16,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let probe = build(device, &shaders::PROBE, &[Slot::Read, Slot::ReadWrite], ["main"]);
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("fma probe"),
+            layout: &probe.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: input.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: output.as_entire_binding() },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&probe.entries[0]);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+        encoder.copy_buffer_to_buffer(&output, 0, &staging, 0, 16);
+        self.queue.submit([encoder.finish()]);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, .., move |result| {
+            // The receiver waits below; if it is gone there is nobody to tell.
+            let _ = sender.send(result);
+        });
+        device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None }).map_err(|e| e.to_string())?;
+        receiver.recv().map_err(|e| e.to_string())?.map_err(|e| e.to_string())?;
+        let bytes = staging.get_mapped_range(..).map_err(|e| e.to_string())?.to_vec();
+        staging.unmap();
+        let result = bytemuck::pod_read_unaligned::<f32>(&bytes[..4]);
+        Ok(result != 0.0)
     }
 
     /// The device, for other GPU work on the same context (the renderer).

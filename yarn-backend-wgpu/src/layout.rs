@@ -32,6 +32,9 @@ pub(crate) struct GpuParams {
 /// `Params::flags` bit: friction is on, so the move is in the friction pass.
 pub(crate) const FRICTION_ON: u32 = 1;
 
+/// `Params::flags` bit: the device's `fma` is fused (see `probe.wgsl`).
+pub(crate) const FUSED_FMA: u32 = 2;
+
 /// Mirrors `Contact`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
@@ -126,5 +129,6 @@ mod tests {
         assert!(shaders::COMMON.contains(&format!("const WORKGROUP: u32 = {}u;", crate::WORKGROUP)));
         let common = shaders::COMMON;
         assert!(common.contains(&format!("const FRICTION_ON: u32 = {FRICTION_ON}u;")), "FRICTION_ON differs");
+        assert!(common.contains(&format!("const FUSED_FMA: u32 = {FUSED_FMA}u;")), "FUSED_FMA differs");
     }
 }

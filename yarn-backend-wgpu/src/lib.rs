@@ -51,7 +51,7 @@ use std::sync::Arc;
 
 use bytemuck::Pod;
 pub use gpu::{Gpu, GpuError};
-use layout::{FRICTION_ON, GpuContact, GpuParams, GpuPin};
+use layout::{FRICTION_ON, FUSED_FMA, GpuContact, GpuParams, GpuPin};
 pub use wgpu;
 use wgpu::util::DeviceExt;
 use yarn_model::terms::MIN_SIN_THETA;
@@ -222,13 +222,13 @@ struct Groups {
 }
 
 impl Loaded {
-    fn gpu_params(&self) -> GpuParams {
+    fn gpu_params(&self, fused_fma: bool) -> GpuParams {
         let c = self.model.coeffs;
         GpuParams {
             nodes: self.model.node_count() as u32,
             contacts: self.model.contacts.len() as u32,
             pins: self.buffers.pin_count,
-            flags: if c.friction > 0.0 { FRICTION_ON } else { 0 },
+            flags: if c.friction > 0.0 { FRICTION_ON } else { 0 } | if fused_fma { FUSED_FMA } else { 0 },
             stretch: c.stretch,
             bend: c.bend,
             contact: c.contact,
@@ -378,7 +378,7 @@ impl Wgpu {
     }
 
     fn write_params(&self, l: &Loaded) {
-        self.gpu.queue.write_buffer(&l.buffers.params, 0, bytemuck::bytes_of(&l.gpu_params()));
+        self.gpu.queue.write_buffer(&l.buffers.params, 0, bytemuck::bytes_of(&l.gpu_params(self.gpu.fused_fma)));
     }
 
     /// Record one substep into `pass`, flipping the parities.

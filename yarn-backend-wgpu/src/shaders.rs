@@ -54,8 +54,11 @@ pub const FUSED: Pass = Pass { name: "fused.wgsl", uses: &[NODE_FORCE], body: in
 /// A plain copy, to measure bandwidth (entry point `main`).
 pub const COPY: Pass = Pass { name: "copy.wgsl", uses: &[], body: include_str!("../shaders/copy.wgsl") };
 
+/// Whether the device's `fma` is fused (entry point `main`).
+pub const PROBE: Pass = Pass { name: "probe.wgsl", uses: &[], body: include_str!("../shaders/probe.wgsl") };
+
 /// Every pass, for validation.
-pub const ALL: [Pass; 6] = [GATHER, FIXED, FRICTION, PINS, FUSED, COPY];
+pub const ALL: [Pass; 7] = [GATHER, FIXED, FRICTION, PINS, FUSED, COPY, PROBE];
 
 #[cfg(test)]
 pub(crate) mod tests {
