@@ -218,6 +218,12 @@ impl Gpu {
         &self.queue
     }
 
+    /// Whether this device's `fma` rounds once, so the shaders can correct
+    /// their square roots and quotients to the CPU's rounding.
+    pub fn fused_fma(&self) -> bool {
+        self.fused_fma
+    }
+
     /// The adapter's name and backend, e.g. `"llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan)"`.
     pub fn adapter(&self) -> String {
         format!("{} ({:?})", self.info.name, self.info.backend)

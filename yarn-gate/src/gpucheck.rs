@@ -61,6 +61,9 @@ pub const MIN_RENDER_COVERAGE: f64 = 0.02;
 pub struct GpuCheckReport {
     /// The adapter's name and API.
     pub adapter: String,
+    /// Whether the adapter's `fma` is fused (the shaders then correct their
+    /// square roots and quotients).
+    pub fused_fma: bool,
     /// Patch size in stitches.
     pub size: String,
     /// Nodes in the patch.
@@ -139,6 +142,7 @@ pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCh
     let pass = modes.iter().all(|m| m.pass) && render_coverage > MIN_RENDER_COVERAGE;
     Ok(GpuCheckReport {
         adapter: gpu.adapter(),
+        fused_fma: gpu.fused_fma(),
         size: format!("{width}x{height}"),
         nodes: fabric.node_count(),
         serial_f32_force_rel_err_vs_f64: max_diff_f64(&want_forces, &true_forces) / true_largest,
@@ -152,8 +156,12 @@ impl GpuCheckReport {
     /// A plain-text table of the report.
     pub fn table(&self) -> String {
         let mut out = format!(
-            "adapter: {}\npatch: {} ({} nodes); Serial f32 force rel err vs f64: {:.3e}\n\n",
-            self.adapter, self.size, self.nodes, self.serial_f32_force_rel_err_vs_f64
+            "adapter: {} (fused fma: {})\npatch: {} ({} nodes); Serial f32 force rel err vs f64: {:.3e}\n\n",
+            self.adapter,
+            if self.fused_fma { "yes" } else { "no" },
+            self.size,
+            self.nodes,
+            self.serial_f32_force_rel_err_vs_f64
         );
         out += &format!(
             "{:<8} {:>14} {:>14} {:>12} {:>12} {:>18} {:>12}  verdict\n",

@@ -116,6 +116,7 @@ fn cli_gpucheck_passes_and_reports_every_mode() {
     }
     let report: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     assert!(report["adapter"].as_str().is_some_and(|a| !a.is_empty()));
+    assert!(report["fused_fma"].is_boolean());
     let modes = report["modes"].as_array().unwrap();
     let names: Vec<_> = modes.iter().map(|m| m["mode"].as_str().unwrap()).collect();
     assert_eq!(names, ["gather", "fixed"]);
