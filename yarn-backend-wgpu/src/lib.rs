@@ -208,6 +208,9 @@ struct Buffers {
     /// Fixed-point accumulators (three i32 per node) and overflow flag.
     acc: wgpu::Buffer,
     overflow: wgpu::Buffer,
+    /// Fixed point only: the positions and velocities a batch started from,
+    /// put back if it overflows.
+    snapshot: Option<[wgpu::Buffer; 2]>,
 }
 
 /// Bind groups by `[px][pv]`: the forces pass writing the next positions,
@@ -431,18 +434,10 @@ impl Wgpu {
         let device = &self.gpu.device;
         let mut encoder = device.create_command_encoder(&Default::default());
         // Fixed point can fail mid-batch: keep the state it started from.
-        let snapshot = (self.mode == Mode::FixedPointAtomic).then(|| {
-            [&l.buffers.x[px], &l.buffers.v[pv]].map(|from| {
-                let to = device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("snapshot"),
-                    size: from.size(),
-                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-                    mapped_at_creation: false,
-                });
-                encoder.copy_buffer_to_buffer(from, 0, &to, 0, from.size());
-                to
-            })
-        });
+        if let Some([x, v]) = &l.buffers.snapshot {
+            encoder.copy_buffer_to_buffer(&l.buffers.x[px], 0, x, 0, x.size());
+            encoder.copy_buffer_to_buffer(&l.buffers.v[pv], 0, v, 0, v.size());
+        }
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             for _ in 0..substeps {
@@ -452,10 +447,10 @@ impl Wgpu {
         self.gpu.queue.submit([encoder.finish()]);
         l.substeps += substeps;
         let result = self.check_overflow(l, first, l.substeps);
-        if let (Err(BackendError::Overflow { .. }), Some([x, v])) = (&result, snapshot) {
+        if let (Err(BackendError::Overflow { .. }), Some([x, v])) = (&result, &l.buffers.snapshot) {
             let mut encoder = device.create_command_encoder(&Default::default());
-            encoder.copy_buffer_to_buffer(&x, 0, &l.buffers.x[px], 0, x.size());
-            encoder.copy_buffer_to_buffer(&v, 0, &l.buffers.v[pv], 0, v.size());
+            encoder.copy_buffer_to_buffer(x, 0, &l.buffers.x[px], 0, x.size());
+            encoder.copy_buffer_to_buffer(v, 0, &l.buffers.v[pv], 0, v.size());
             self.gpu.queue.submit([encoder.finish()]);
             (l.px, l.pv, l.substeps) = (px, pv, first);
             self.finish()?;
@@ -515,6 +510,16 @@ impl Backend for Wgpu {
             pin_count: 0,
             acc: storage(device, "accumulators", &vec![0i32; 3 * n]),
             overflow: storage(device, "overflow", &[0u32; 4]),
+            snapshot: (self.mode == Mode::FixedPointAtomic).then(|| {
+                [x.len(), v.len()].map(|elements| {
+                    device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("snapshot"),
+                        size: (elements.max(1) * 16) as u64,
+                        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                        mapped_at_creation: false,
+                    })
+                })
+            }),
         };
         let groups = self.bind_all(&buffers);
         let mut loaded = Loaded { model, buffers, groups, px: 0, pv: 0, substeps: 0 };
