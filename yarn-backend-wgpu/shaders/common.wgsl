@@ -107,6 +107,11 @@ fn turning_angle(c: f32) -> f32 {
     return select(angle, 3.14159265358979 - angle, c < 0.0);
 }
 
+// v* = (v + h F / m) / (1 + βh) (SPEC §4 step 2), rounded as the CPU does.
+fn damped_velocity(v: vec3<f32>, f: vec3<f32>) -> vec3<f32> {
+    return mul3(v + mul3(f, p.h_over_m), p.damping_factor);
+}
+
 // `terms::spring_force`: the force on `a` of a spring from a to b = a + d.
 fn spring_force(d: vec3<f32>, rest: f32, k: f32) -> vec3<f32> {
     let length = norm(d);

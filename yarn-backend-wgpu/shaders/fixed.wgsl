@@ -59,33 +59,10 @@ fn scatter(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
     }
 }
 
-// Read and clear node i's accumulators: its force, plus gravity.
-fn take_force(i: u32) -> vec3<f32> {
+// Read and clear node i's accumulators: its force, plus gravity. The
+// update of `update.wgsl` calls this.
+fn total_force(i: u32) -> vec3<f32> {
     let q = vec3<f32>(f32(atomicExchange(&acc[3u * i], 0)), f32(atomicExchange(&acc[3u * i + 1u], 0)),
                       f32(atomicExchange(&acc[3u * i + 2u], 0)));
     return q / p.scale + vec3<f32>(0.0, p.gravity_y, 0.0);
-}
-
-@compute @workgroup_size(WORKGROUP)
-fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
-        @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = thread_index(group, local, groups);
-    if i >= p.nodes {
-        return;
-    }
-    let velocity = mul3(v[i].xyz + mul3(take_force(i), p.h_over_m), p.damping_factor);
-    v[i] = vec4<f32>(velocity, 0.0);
-    if (p.flags & FRICTION_ON) == 0u {
-        out[i] = vec4<f32>(x[i].xyz + mul3(velocity, p.h), 0.0);
-    }
-}
-
-@compute @workgroup_size(WORKGROUP)
-fn forces(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
-          @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = thread_index(group, local, groups);
-    if i >= p.nodes {
-        return;
-    }
-    out[i] = vec4<f32>(take_force(i), 0.0);
 }

@@ -16,7 +16,7 @@
 
 // v* of node j (step 2).
 fn velocity_star(j: u32) -> vec3<f32> {
-    return mul3(v[j].xyz + mul3(node_force(j), p.h_over_m), p.damping_factor);
+    return damped_velocity(v[j].xyz, node_force(j));
 }
 
 @compute @workgroup_size(WORKGROUP)

@@ -8,6 +8,9 @@ pub const COMMON: &str = include_str!("../shaders/common.wgsl");
 
 /// One node's total force, for the passes that gather.
 pub const NODE_FORCE: &str = include_str!("../shaders/node_force.wgsl");
+/// The node update both accumulation modes share (entry points `step` and
+/// `forces`), around the mode's `total_force`.
+pub const UPDATE: &str = include_str!("../shaders/update.wgsl");
 /// One node's sum of friction changes.
 pub const NODE_FRICTION: &str = include_str!("../shaders/node_friction.wgsl");
 
@@ -37,10 +40,10 @@ impl Pass {
 /// Gather mode's forces and damped velocity update (entry points `step`
 /// and `forces`).
 pub const GATHER: Pass =
-    Pass { name: "gather.wgsl", uses: &[NODE_FORCE], body: include_str!("../shaders/gather.wgsl") };
+    Pass { name: "gather.wgsl", uses: &[NODE_FORCE, UPDATE], body: include_str!("../shaders/gather.wgsl") };
 /// Fixed-point mode's scatter, then its velocity update (entry points
 /// `scatter`, `step` and `forces`).
-pub const FIXED: Pass = Pass { name: "fixed.wgsl", uses: &[], body: include_str!("../shaders/fixed.wgsl") };
+pub const FIXED: Pass = Pass { name: "fixed.wgsl", uses: &[UPDATE], body: include_str!("../shaders/fixed.wgsl") };
 /// Friction and the move, both modes (entry point `main`).
 pub const FRICTION: Pass =
     Pass { name: "friction.wgsl", uses: &[NODE_FRICTION], body: include_str!("../shaders/friction.wgsl") };

@@ -1,0 +1,29 @@
+// The node update both accumulation modes share (SPEC §4 steps 1–2): the
+// damped velocity v* in place and, without friction, the move into `out`
+// (entry point `step`); or the force alone into `out` (entry point
+// `forces`, for `Backend::compute_forces`). Each mode's file supplies
+// `total_force(i)` and the bindings `p`, `x`, `v` and `out`.
+
+@compute @workgroup_size(WORKGROUP)
+fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
+        @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = thread_index(group, local, groups);
+    if i >= p.nodes {
+        return;
+    }
+    let velocity = damped_velocity(v[i].xyz, total_force(i));
+    v[i] = vec4<f32>(velocity, 0.0);
+    if (p.flags & FRICTION_ON) == 0u {
+        out[i] = vec4<f32>(x[i].xyz + mul3(velocity, p.h), 0.0);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn forces(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
+          @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = thread_index(group, local, groups);
+    if i >= p.nodes {
+        return;
+    }
+    out[i] = vec4<f32>(total_force(i), 0.0);
+}
