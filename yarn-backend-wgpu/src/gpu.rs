@@ -62,6 +62,8 @@ pub(crate) struct Kernels {
 /// A GPU device with yarnify's pipelines, shareable between backends.
 #[derive(Debug)]
 pub struct Gpu {
+    instance: wgpu::Instance,
+    adapter: wgpu::Adapter,
     pub(crate) device: wgpu::Device,
     pub(crate) queue: wgpu::Queue,
     pub(crate) limits: wgpu::Limits,
@@ -87,6 +89,9 @@ impl Gpu {
     ///
     /// # Errors
     /// As [`Gpu::new`].
+    // In the browser wgpu's handles are neither `Send` nor `Sync`, and
+    // nothing is shared across threads there.
+    #[cfg_attr(target_arch = "wasm32", allow(clippy::arc_with_non_send_sync))]
     pub async fn new_async() -> Result<Arc<Self>, GpuError> {
         // Vulkan, Metal, DX12 or the browser's WebGPU (WGPU_BACKEND overrides):
         // compute needs no GL fallback, and probing for one only adds noise.
@@ -149,15 +154,15 @@ impl Gpu {
             ),
         };
         let limits = device.limits();
-        let mut gpu = Self { device, queue, limits, fused_fma: false, info, errors, kernels };
+        let mut gpu = Self { instance, adapter, device, queue, limits, fused_fma: false, info, errors, kernels };
         gpu.fused_fma =
-            gpu.probe_fma().map_err(|reason| GpuError::Device { adapter: gpu.info.name.clone(), reason })?;
+            gpu.probe_fma().await.map_err(|reason| GpuError::Device { adapter: gpu.info.name.clone(), reason })?;
         gpu.take_error().map_err(|reason| GpuError::Device { adapter: gpu.info.name.clone(), reason })?;
         Ok(Arc::new(gpu))
     }
 
     /// Whether `fma` rounds once on this device (`probe.wgsl`).
-    fn probe_fma(&self) -> Result<bool, String> {
+    async fn probe_fma(&self) -> Result<bool, String> {
         let device = &self.device;
         let one_ulp = 1.0 + f32::EPSILON;
         let input = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -195,17 +200,21 @@ impl Gpu {
         }
         encoder.copy_buffer_to_buffer(&output, 0, &staging, 0, 16);
         self.queue.submit([encoder.finish()]);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        staging.map_async(wgpu::MapMode::Read, .., move |result| {
-            // The receiver waits below; if it is gone there is nobody to tell.
-            let _ = sender.send(result);
-        });
-        device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None }).map_err(|e| e.to_string())?;
-        receiver.recv().map_err(|e| e.to_string())?.map_err(|e| e.to_string())?;
-        let bytes = staging.get_mapped_range(..).map_err(|e| e.to_string())?.to_vec();
-        staging.unmap();
+        let bytes = read_mapped(device, &staging).await?;
         let result = bytemuck::pod_read_unaligned::<f32>(&bytes[..4]);
         Ok(result != 0.0)
+    }
+
+    /// The instance the device came from, e.g. to make a canvas surface in
+    /// the browser.
+    pub fn instance(&self) -> &wgpu::Instance {
+        &self.instance
+    }
+
+    /// The adapter the device came from, e.g. for a surface's
+    /// capabilities.
+    pub fn wgpu_adapter(&self) -> &wgpu::Adapter {
+        &self.adapter
     }
 
     /// The device, for other GPU work on the same context (the renderer).
@@ -225,8 +234,12 @@ impl Gpu {
     }
 
     /// The adapter's name and backend, e.g. `"llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan)"`.
+    /// Browsers may withhold the name; then the driver stands in, or
+    /// "unnamed adapter".
     pub fn adapter(&self) -> String {
-        format!("{} ({:?})", self.info.name, self.info.backend)
+        let info = &self.info;
+        let name = [&info.name, &info.driver, &info.driver_info].into_iter().find(|s| !s.is_empty());
+        format!("{} ({:?})", name.map_or("unnamed adapter", String::as_str), info.backend)
     }
 
     /// The memory bandwidth a pass reaches on this device, in bytes per
@@ -329,6 +342,28 @@ impl Gpu {
         // grid of 65,535 + 1 workgroups as two full rows ran 3x slower).
         (rows <= max).then_some((groups.div_ceil(rows), rows))
     }
+}
+
+/// The bytes of `staging`, a `MAP_READ` buffer that submitted work copies
+/// into, once the device has finished that work. Natively this waits on the
+/// device and is ready at once; in the browser, where nothing may block, the
+/// future resolves when the browser maps the buffer. The buffer is unmapped
+/// again afterwards.
+///
+/// # Errors
+/// When the device fails or the mapping is refused.
+pub async fn read_mapped(device: &wgpu::Device, staging: &wgpu::Buffer) -> Result<Vec<u8>, String> {
+    let (sender, receiver) = futures_channel::oneshot::channel();
+    staging.map_async(wgpu::MapMode::Read, .., move |result| {
+        // The receiver waits below; if it is gone there is nobody to tell.
+        let _ = sender.send(result);
+    });
+    // A no-op in the browser, which maps on its own.
+    device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None }).map_err(|e| e.to_string())?;
+    receiver.await.map_err(|e| e.to_string())?.map_err(|e| e.to_string())?;
+    let bytes = staging.get_mapped_range(..).map_err(|e| e.to_string())?.to_vec();
+    staging.unmap();
+    Ok(bytes)
 }
 
 /// Compile `pass` with one bind group layout of `slots`, for each entry

@@ -50,7 +50,7 @@ pub mod shaders;
 use std::sync::Arc;
 
 use bytemuck::Pod;
-pub use gpu::{Gpu, GpuError};
+pub use gpu::{Gpu, GpuError, read_mapped};
 use layout::{FRICTION_ON, FUSED_FMA, GpuContact, GpuParams, GpuPin};
 pub use wgpu;
 use wgpu::util::DeviceExt;
@@ -140,8 +140,25 @@ impl Wgpu {
         self.gpu.take_error().map_err(BackendError::Device)
     }
 
-    /// Copy `bytes` of `buffer` back to the CPU.
+    /// Copy `bytes` of `buffer` back to the CPU, waiting for the device.
+    /// In the browser nothing may wait: use [`Wgpu::read_positions`].
     fn read(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>, BackendError> {
+        if cfg!(target_arch = "wasm32") {
+            return Err(BackendError::Device(
+                "a blocking read-back is not possible in the browser; await `Wgpu::read_positions` instead".into(),
+            ));
+        }
+        pollster::block_on(self.read_async(buffer, bytes))
+    }
+
+    /// Submit a copy of `bytes` of `buffer` to a staging buffer; the
+    /// future owns what it needs, so no borrow of `self` is held while it
+    /// waits.
+    fn read_async(
+        &self,
+        buffer: &wgpu::Buffer,
+        bytes: u64,
+    ) -> impl std::future::Future<Output = Result<Vec<u8>, BackendError>> + 'static {
         let device = &self.gpu.device;
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
@@ -152,28 +169,42 @@ impl Wgpu {
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
         encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes);
         self.gpu.queue.submit([encoder.finish()]);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        staging.map_async(wgpu::MapMode::Read, .., move |result| {
-            // The receiver waits below; if it is gone there is nobody to tell.
-            let _ = sender.send(result);
-        });
-        self.finish()?;
-        receiver
-            .recv()
-            .map_err(|e| BackendError::Device(e.to_string()))?
-            .map_err(|e| BackendError::Device(e.to_string()))?;
-        let bytes = staging.get_mapped_range(..).map_err(|e| BackendError::Device(e.to_string()))?.to_vec();
-        staging.unmap();
-        Ok(bytes)
+        let gpu = Arc::clone(&self.gpu);
+        async move {
+            let bytes = read_mapped(&gpu.device, &staging).await.map_err(BackendError::Device)?;
+            gpu.take_error().map_err(BackendError::Device)?;
+            Ok(bytes)
+        }
+    }
+
+    /// The current positions, copied back without blocking: the read-back
+    /// for the browser, where [`Backend::read_state`] cannot wait. The copy
+    /// is submitted now, so the result is the state as of this call; the
+    /// future borrows nothing, and natively it is ready at once.
+    ///
+    /// # Errors
+    /// [`BackendError::NotLoaded`] before load; [`BackendError::Device`]
+    /// when the device fails.
+    pub fn read_positions(
+        &self,
+    ) -> Result<impl std::future::Future<Output = Result<Vec<V3<f32>>, BackendError>> + 'static, BackendError> {
+        let loaded = self.loaded.as_ref().ok_or(BackendError::NotLoaded)?;
+        let n = loaded.model.node_count();
+        let bytes = self.read_async(&loaded.buffers.x[loaded.px], (n * 16) as u64);
+        Ok(async move { Ok(vectors(&bytes.await?)) })
     }
 
     /// Read a node buffer of `vec4<f32>` as vectors.
     fn read_vectors(&self, buffer: &wgpu::Buffer, nodes: usize, out: &mut Vec<V3<f32>>) -> Result<(), BackendError> {
         let bytes = self.read(buffer, (nodes * 16) as u64)?;
-        out.clear();
-        out.extend(bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes).iter().map(|v| V3::new(v[0], v[1], v[2])));
+        *out = vectors(&bytes);
         Ok(())
     }
+}
+
+/// `vec4<f32>` bytes as vectors (w dropped).
+fn vectors(bytes: &[u8]) -> Vec<V3<f32>> {
+    bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(bytes).iter().map(|v| V3::new(v[0], v[1], v[2])).collect()
 }
 
 /// A fabric on the GPU: its buffers, the bind groups of every pass, and the

@@ -295,6 +295,7 @@ fn render(args: &RenderArgs) -> Result<f64, GateError> {
         height: args.image.1 as u32,
         orbit: args.orbit.to_radians(),
         elevation: args.elevation.to_radians(),
+        zoom: 1.0,
     };
     let frame = Renderer::new(&*Gpu::new()?)
         .render(&positions, radius, &view)

@@ -32,11 +32,12 @@
 
 use std::fmt::Write as _;
 use std::path::Path;
+use std::sync::{Mutex, PoisonError};
 
 use bytemuck::{Pod, Zeroable};
 use nalgebra::{Matrix4, Perspective3, Point3, Vector3};
 use wgpu::util::DeviceExt;
-use yarn_backend_wgpu::Gpu;
+use yarn_backend_wgpu::{Gpu, read_mapped};
 
 /// The tube shader, shared with the browser demo.
 pub const SHADER: &str = include_str!("../shaders/yarn.wgsl");
@@ -97,11 +98,14 @@ pub struct View {
     pub orbit: f32,
     /// Angle above the fabric's plane, in radians (default: 0.35).
     pub elevation: f32,
+    /// Magnification: 1 frames the whole fabric, 2 comes twice as close
+    /// (default: 1).
+    pub zoom: f32,
 }
 
 impl Default for View {
     fn default() -> Self {
-        Self { width: 1280, height: 960, orbit: 0.0, elevation: 0.35 }
+        Self { width: 1280, height: 960, orbit: 0.0, elevation: 0.35, zoom: 1.0 }
     }
 }
 
@@ -154,11 +158,75 @@ pub struct Renderer {
     queue: wgpu::Queue,
     pipeline: wgpu::RenderPipeline,
     layout: wgpu::BindGroupLayout,
+    format: wgpu::TextureFormat,
+    /// The multisampled colour and depth targets of the last size drawn.
+    targets: Mutex<Option<Targets>>,
+}
+
+/// Multisampled colour and depth textures of one size.
+#[derive(Debug)]
+struct Targets {
+    size: (u32, u32),
+    colour: wgpu::TextureView,
+    depth: wgpu::TextureView,
+}
+
+/// A yarn ready to draw from a position buffer: its tube frames on the GPU,
+/// the bounds that frame it, and its camera's uniform buffer. Made once per
+/// fabric by [`Renderer::yarn`], then drawn every frame.
+#[derive(Debug)]
+pub struct Yarn {
+    normals: wgpu::Buffer,
+    camera: wgpu::Buffer,
+    low: Vector3<f64>,
+    high: Vector3<f64>,
+    radius: f32,
+    nodes: usize,
+}
+
+impl Yarn {
+    /// Where `point` lands in the image of `view`: pixel x (from the left),
+    /// pixel y (from the top) and depth in 0..1, or `None` behind the
+    /// camera. For picking a node under the cursor.
+    pub fn project(&self, view: &View, point: [f32; 3]) -> Option<[f32; 3]> {
+        let clip = self.view_proj(view) * vector(&point).push(1.0);
+        (clip.w > 0.0).then(|| {
+            let ndc = clip.xyz() / clip.w;
+            let x = (ndc.x + 1.0) / 2.0 * f64::from(view.width);
+            let y = (1.0 - ndc.y) / 2.0 * f64::from(view.height);
+            [x as f32, y as f32, ndc.z as f32]
+        })
+    }
+
+    /// The point at pixel (`x`, `y`) and `depth` of `view`'s image: the
+    /// inverse of [`Yarn::project`], for dragging a node with the cursor.
+    pub fn unproject(&self, view: &View, x: f32, y: f32, depth: f32) -> [f32; 3] {
+        let ndc = nalgebra::Vector4::new(
+            2.0 * f64::from(x) / f64::from(view.width) - 1.0,
+            1.0 - 2.0 * f64::from(y) / f64::from(view.height),
+            f64::from(depth),
+            1.0,
+        );
+        let inverse = self.view_proj(view).try_inverse().unwrap_or_else(Matrix4::identity);
+        let world = inverse * ndc;
+        let p = world.xyz() / world.w;
+        [p.x as f32, p.y as f32, p.z as f32]
+    }
+
+    fn view_proj(&self, view: &View) -> Matrix4<f64> {
+        camera(self.low, self.high, self.radius, view).0
+    }
 }
 
 impl Renderer {
-    /// A renderer on `gpu`'s device.
+    /// A renderer on `gpu`'s device, drawing offscreen images.
     pub fn new(gpu: &Gpu) -> Self {
+        Self::for_format(gpu, FORMAT)
+    }
+
+    /// A renderer on `gpu`'s device that draws into textures of `format`,
+    /// such as a browser canvas's preferred format ([`Renderer::draw`]).
+    pub fn for_format(gpu: &Gpu, format: wgpu::TextureFormat) -> Self {
         let device = gpu.device().clone();
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("yarn.wgsl"),
@@ -202,12 +270,12 @@ impl Renderer {
                 module: &module,
                 entry_point: Some("fs"),
                 compilation_options: Default::default(),
-                targets: &[Some(FORMAT.into())],
+                targets: &[Some(format.into())],
             }),
             multiview_mask: None,
             cache: None,
         });
-        Self { device, queue: gpu.queue().clone(), pipeline, layout }
+        Self { device, queue: gpu.queue().clone(), pipeline, layout, format, targets: Mutex::new(None) }
     }
 
     /// Draw the yarn through `positions` as a tube of `radius`, framed by
@@ -218,8 +286,12 @@ impl Renderer {
     /// GPU failure.
     pub fn render(&self, positions: &[[f32; 3]], radius: f32, view: &View) -> Result<Frame, RenderError> {
         check(positions)?;
-        let position_buffer = self.buffer("positions", &vec4s(positions));
-        self.draw(&position_buffer, positions, radius, view)
+        let position_buffer = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("positions"),
+            contents: bytemuck::cast_slice(&vec4s(positions)),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        self.image(&position_buffer, positions, radius, view)
     }
 
     /// Draw the yarn whose positions are already on this renderer's GPU, in
@@ -239,71 +311,159 @@ impl Renderer {
         radius: f32,
         view: &View,
     ) -> Result<Frame, RenderError> {
+        self.image(positions, reference, radius, view)
+    }
+
+    /// Prepare the yarn of `reference` for drawing from a position buffer
+    /// of the same node count: `reference` (its rest shape, say) sets the
+    /// tube frames (re-squared to the current tangents in the shader) and
+    /// the framing.
+    ///
+    /// # Errors
+    /// Fewer than two positions or a non-finite one.
+    pub fn yarn(&self, reference: &[[f32; 3]], radius: f32) -> Result<Yarn, RenderError> {
         check(reference)?;
-        if positions.size() < reference.len() as u64 * 16 {
-            return Err(RenderError::Device(format!(
-                "the position buffer holds {} bytes, too few for {} nodes",
-                positions.size(),
-                reference.len()
-            )));
-        }
-        self.draw(positions, reference, radius, view)
-    }
-
-    fn buffer(&self, label: &str, data: &[[f32; 4]]) -> wgpu::Buffer {
-        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytemuck::cast_slice(data),
+        let (low, high) = reference
+            .iter()
+            .map(vector)
+            .fold((Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)), |(low, high), p| {
+                (low.inf(&p), high.sup(&p))
+            });
+        let camera = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("camera"),
+            size: std::mem::size_of::<Camera>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let normals = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("normals"),
+            contents: bytemuck::cast_slice(&vec4s(&transport_normals(reference))),
             usage: wgpu::BufferUsages::STORAGE,
-        })
+        });
+        Ok(Yarn { normals, camera, low, high, radius, nodes: reference.len() })
     }
 
-    /// Draw `position_buffer` with frames and framing from `shape`.
-    fn draw(
+    /// Record a drawing of `yarn` at `positions` (one `vec4<f32>` per node)
+    /// into `target`, a `view.width` x `view.height` texture of this
+    /// renderer's format, cleared to [`BACKGROUND`] first. Nothing is
+    /// submitted or read back: the caller submits `encoder`, e.g. once a
+    /// frame into a canvas.
+    ///
+    /// # Errors
+    /// A bad image size, or a position buffer too small for the yarn.
+    pub fn draw(
         &self,
-        position_buffer: &wgpu::Buffer,
-        shape: &[[f32; 3]],
-        radius: f32,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::TextureView,
+        positions: &wgpu::Buffer,
+        yarn: &Yarn,
         view: &View,
-    ) -> Result<Frame, RenderError> {
+    ) -> Result<(), RenderError> {
         let limit = self.device.limits().max_texture_dimension_2d;
         if !(1..=limit).contains(&view.width) || !(1..=limit).contains(&view.height) {
             return Err(RenderError::BadSize { width: view.width, height: view.height, limit });
         }
-        let camera = camera(shape, radius, view);
-        let device = &self.device;
-        let camera_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("camera"),
-            contents: bytemuck::bytes_of(&camera),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-        let normal_buffer = self.buffer("normals", &vec4s(&transport_normals(shape)));
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        if positions.size() < yarn.nodes as u64 * 16 {
+            return Err(RenderError::Device(format!(
+                "the position buffer holds {} bytes, too few for {} nodes",
+                positions.size(),
+                yarn.nodes
+            )));
+        }
+        let (view_proj, eye, direction) = camera(yarn.low, yarn.high, yarn.radius, view);
+        let light = Vector3::new(-0.4, 0.7, 0.6) + direction * 0.5;
+        let uniform = Camera {
+            view_proj: view_proj.cast::<f32>().into(),
+            eye: [eye.x as f32, eye.y as f32, eye.z as f32],
+            radius: yarn.radius,
+            light: [light.x as f32, light.y as f32, light.z as f32],
+            segments: (yarn.nodes - 1) as u32,
+        };
+        self.queue.write_buffer(&yarn.camera, 0, bytemuck::bytes_of(&uniform));
+        let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("yarn"),
             layout: &self.layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: camera_buffer.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: position_buffer.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: normal_buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 0, resource: yarn.camera.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: positions.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: yarn.normals.as_entire_binding() },
             ],
         });
-        let size = wgpu::Extent3d { width: view.width, height: view.height, depth_or_array_layers: 1 };
-        let texture = |label, format, samples, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size,
-                mip_level_count: 1,
-                sample_count: samples,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
+        let mut targets = self.targets.lock().unwrap_or_else(PoisonError::into_inner);
+        let targets = match targets.take() {
+            Some(t) if t.size == (view.width, view.height) => targets.insert(t),
+            _ => targets.insert(self.targets(view.width, view.height)),
         };
-        let target = wgpu::TextureUsages::RENDER_ATTACHMENT;
-        let msaa = texture("colour", FORMAT, SAMPLES, target);
-        let depth = texture("depth", DEPTH, SAMPLES, target);
-        let resolved = texture("resolved", FORMAT, 1, target | wgpu::TextureUsages::COPY_SRC);
+        let [r, g, b, _] = BACKGROUND.map(|c| srgb_to_linear(f64::from(c) / 255.0));
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("yarn"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &targets.colour,
+                depth_slice: None,
+                resolve_target: Some(target),
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
+                    store: wgpu::StoreOp::Discard,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &targets.depth,
+                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.draw(0..SIDES * 6, 0..(yarn.nodes - 1) as u32);
+        Ok(())
+    }
+
+    fn targets(&self, width: u32, height: u32) -> Targets {
+        let texture = |label, format| {
+            self.device
+                .create_texture(&wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: SAMPLES,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                    view_formats: &[],
+                })
+                .create_view(&Default::default())
+        };
+        Targets { size: (width, height), colour: texture("colour", self.format), depth: texture("depth", DEPTH) }
+    }
+
+    /// Draw `positions` with frames and framing from `shape` into an image.
+    fn image(
+        &self,
+        positions: &wgpu::Buffer,
+        shape: &[[f32; 3]],
+        radius: f32,
+        view: &View,
+    ) -> Result<Frame, RenderError> {
+        let yarn = self.yarn(shape, radius)?;
+        let device = &self.device;
+        let limit = device.limits().max_texture_dimension_2d;
+        if !(1..=limit).contains(&view.width) || !(1..=limit).contains(&view.height) {
+            return Err(RenderError::BadSize { width: view.width, height: view.height, limit });
+        }
+        let size = wgpu::Extent3d { width: view.width, height: view.height, depth_or_array_layers: 1 };
+        let resolved = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("resolved"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: self.format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
         let row = (view.width * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
@@ -312,35 +472,7 @@ impl Renderer {
             mapped_at_creation: false,
         });
         let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let [r, g, b, _] = BACKGROUND.map(|c| srgb_to_linear(f64::from(c) / 255.0));
-            let msaa_view = msaa.create_view(&Default::default());
-            let resolved_view = resolved.create_view(&Default::default());
-            let depth_view = depth.create_view(&Default::default());
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("yarn"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &msaa_view,
-                    depth_slice: None,
-                    resolve_target: Some(&resolved_view),
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
-                        store: wgpu::StoreOp::Discard,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth_view,
-                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &group, &[]);
-            pass.draw(0..SIDES * 6, 0..(shape.len() - 1) as u32);
-        }
+        self.draw(&mut encoder, &resolved.create_view(&Default::default()), positions, &yarn, view)?;
         encoder.copy_texture_to_buffer(
             resolved.as_image_copy(),
             wgpu::TexelCopyBufferInfo {
@@ -350,25 +482,11 @@ impl Renderer {
             size,
         );
         self.queue.submit([encoder.finish()]);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        readback.map_async(wgpu::MapMode::Read, .., move |result| {
-            // The receiver waits below; if it is gone there is nobody to tell.
-            let _ = sender.send(result);
-        });
-        device
-            .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
-            .map_err(|e| RenderError::Device(e.to_string()))?;
-        receiver
-            .recv()
-            .map_err(|e| RenderError::Device(e.to_string()))?
-            .map_err(|e| RenderError::Device(e.to_string()))?;
-        let mapped = readback.get_mapped_range(..).map_err(|e| RenderError::Device(e.to_string()))?;
+        let mapped = pollster::block_on(read_mapped(device, &readback)).map_err(RenderError::Device)?;
         let mut rgba = Vec::with_capacity((view.width * view.height * 4) as usize);
         for line in mapped.chunks(row as usize).take(view.height as usize) {
             rgba.extend_from_slice(&line[..(view.width * 4) as usize]);
         }
-        drop(mapped);
-        readback.unmap();
         Ok(Frame { width: view.width, height: view.height, rgba })
     }
 }
@@ -424,14 +542,15 @@ pub fn transport_normals(positions: &[[f32; 3]]) -> Vec<[f32; 3]> {
     normals.into_iter().map(|n| [n.x as f32, n.y as f32, n.z as f32]).collect()
 }
 
-/// The camera that frames `positions`' bounds from `view`'s angles.
-fn camera(positions: &[[f32; 3]], radius: f32, view: &View) -> Camera {
-    let (low, high) = positions
-        .iter()
-        .map(vector)
-        .fold((Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)), |(low, high), p| {
-            (low.inf(&p), high.sup(&p))
-        });
+/// The camera that frames the bounds `low`..`high` from `view`'s angles:
+/// its view-projection matrix (to wgpu's depth range), the eye, and the
+/// direction from the centre to the eye.
+fn camera(
+    low: Vector3<f64>,
+    high: Vector3<f64>,
+    radius: f32,
+    view: &View,
+) -> (Matrix4<f64>, Vector3<f64>, Vector3<f64>) {
     let centre = (low + high) / 2.0;
     let fovy = 35f64.to_radians();
     let aspect = f64::from(view.width) / f64::from(view.height);
@@ -450,25 +569,20 @@ fn camera(positions: &[[f32; 3]], radius: f32, view: &View) -> Camera {
     });
     let extent = |axis: &Vector3<f64>| corners.clone().map(|c| c.dot(axis).abs()).fold(0.0, f64::max) + pad;
     let (across, upward, reach) = (extent(&right), extent(&up), extent(&direction));
-    // Far enough that the box fits both fields of view, with a margin.
+    // Far enough that the box fits both fields of view, with a margin, then
+    // closer by the zoom; the depth range keeps room for a fabric pulled
+    // well outside its rest bounds.
     let tan_y = (fovy / 2.0).tan();
-    let distance = reach + 1.08 * (upward / tan_y).max(across / (aspect * tan_y));
+    let zoom = if view.zoom.is_finite() && view.zoom > 0.0 { f64::from(view.zoom) } else { 1.0 };
+    let distance = reach + 1.08 * (upward / tan_y).max(across / (aspect * tan_y)) / zoom;
     let eye = centre + direction * distance;
     let look = Matrix4::look_at_rh(&Point3::from(eye), &Point3::from(centre), &Vector3::y());
-    let depth_reach = (high - low).norm() / 2.0 + pad;
+    let depth_reach = (high - low).norm() + pad;
     let projection =
-        Perspective3::new(aspect, fovy, (distance - depth_reach).max(1e-3 * distance), distance + depth_reach);
+        Perspective3::new(aspect, fovy, (distance - depth_reach).max(1e-2 * distance), distance + depth_reach);
     // OpenGL's depth range [−1, 1] to wgpu's [0, 1].
     let depth = Matrix4::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.0, 0.0, 0.0, 1.0);
-    let view_proj = (depth * projection.as_matrix() * look).cast::<f32>();
-    let light = Vector3::new(-0.4, 0.7, 0.6) + direction * 0.5;
-    Camera {
-        view_proj: view_proj.into(),
-        eye: [eye.x as f32, eye.y as f32, eye.z as f32],
-        radius,
-        light: [light.x as f32, light.y as f32, light.z as f32],
-        segments: (positions.len() - 1) as u32,
-    }
+    (depth * projection.as_matrix() * look, eye, direction)
 }
 
 /// The tube through `positions` as a Wavefront OBJ mesh: [`SIDES`] vertices

@@ -28,7 +28,7 @@ fn patch(w: usize, h: usize) -> (Vec<[f32; 3]>, f32) {
     (positions, fabric.yarn_radius() as f32)
 }
 
-const SMALL: View = View { width: 320, height: 240, orbit: 0.0, elevation: 0.35 };
+const SMALL: View = View { width: 320, height: 240, orbit: 0.0, elevation: 0.35, zoom: 1.0 };
 
 #[test]
 fn a_patch_covers_the_frame_and_a_degenerate_one_does_not() {
@@ -105,4 +105,37 @@ fn positions_on_the_gpu_draw_like_positions_read_back() {
         mapped_at_creation: false,
     });
     assert!(matches!(renderer.render_gpu(&small, &rest, radius, &SMALL), Err(RenderError::Device(_))));
+}
+
+#[test]
+fn picking_projects_nodes_onto_their_pixels_and_back() {
+    let Some(renderer) = renderer() else { return };
+    let (positions, radius) = patch(6, 6);
+    let yarn = renderer.yarn(&positions, radius).expect("yarn");
+    for view in [SMALL, View { orbit: 0.7, elevation: -0.3, zoom: 2.5, ..SMALL }] {
+        let mut inside = 0;
+        for p in &positions {
+            let [x, y, depth] = yarn.project(&view, *p).expect("in front of the camera");
+            assert!((0.0..=1.0).contains(&depth), "depth {depth} outside the clip range");
+            if (0.0..320.0).contains(&x) && (0.0..240.0).contains(&y) {
+                inside += 1;
+            }
+            let back = yarn.unproject(&view, x, y, depth);
+            let error = (0..3).map(|k| (back[k] - p[k]).abs()).fold(0.0, f32::max);
+            assert!(error < 1e-2, "{p:?} came back as {back:?}");
+        }
+        // The default framing holds the whole fabric; zooming in crops it.
+        if view.zoom == 1.0 {
+            assert_eq!(inside, positions.len());
+        } else {
+            assert!(inside < positions.len(), "a 2.5x zoom should crop the patch");
+        }
+    }
+    // Nodes drawn where `project` says: the pixel under the centre node's
+    // projection is yarn, not background.
+    let frame = renderer.render(&positions, radius, &SMALL).expect("render");
+    let centre = positions[positions.len() / 2];
+    let [x, y, _] = yarn.project(&SMALL, centre).expect("projects");
+    let at = 4 * (y as usize * 320 + x as usize);
+    assert_ne!(&frame.rgba[at..at + 4], BACKGROUND.as_slice(), "no yarn under node {centre:?} at ({x}, {y})");
 }
