@@ -4,9 +4,11 @@
 //! - [`Mode::Gather`] (the default): each node sums its own segments,
 //!   joints and contacts through a precomputed adjacency, in a fixed order,
 //!   recomputing the elements it shares with its neighbours. No atomics, no
-//!   quantum, deterministic. With friction it also recomputes its contact
-//!   partners' v*, so a whole substep is one dispatch (`fused.wgsl`), or
-//!   `gather.wgsl` without friction.
+//!   quantum, deterministic. With friction, a fabric of fewer than
+//!   [`FUSE_BELOW`] nodes also recomputes each node's contact partners' v*,
+//!   so a whole substep is one dispatch (`fused.wgsl`); a larger one runs
+//!   the forces (`gather.wgsl`) and then friction and the move
+//!   (`friction.wgsl`). Without friction it is `gather.wgsl` alone.
 //! - [`Mode::FixedPointAtomic`]: the paper's scheme. Every element adds
 //!   round(f·S), S = 4096, into three i32 accumulators per node with
 //!   atomicAdd (`fixed.wgsl`), then friction and the move (`friction.wgsl`).
@@ -91,6 +93,7 @@ impl Mode {
 pub struct Wgpu {
     gpu: Arc<Gpu>,
     mode: Mode,
+    fuse_below: usize,
     loaded: Option<Loaded>,
 }
 
@@ -106,7 +109,14 @@ impl Wgpu {
     /// A backend on a shared GPU context: building one compiles every
     /// pipeline, so share it between backends.
     pub fn with_gpu(gpu: Arc<Gpu>, mode: Mode) -> Self {
-        Self { gpu, mode, loaded: None }
+        Self { gpu, mode, fuse_below: FUSE_BELOW, loaded: None }
+    }
+
+    /// Fuse gather mode's substep with friction into one dispatch only
+    /// below `nodes` nodes (default [`FUSE_BELOW`]; 0 never fuses). The
+    /// results are the same either way; only the speed differs.
+    pub fn set_fuse_below(&mut self, nodes: usize) {
+        self.fuse_below = nodes;
     }
 
     /// The GPU context.
@@ -326,6 +336,15 @@ fn gpu_contacts(model: &Model<f32>) -> Vec<GpuContact> {
         .collect()
 }
 
+/// Gather mode with friction fuses the substep into one dispatch below this
+/// many nodes, and runs the forces and the friction as two passes from it
+/// up. Fusing saves a dispatch but recomputes each contact partner's v*,
+/// with scattered reads; measured on an H200 (`yarn-gate bench --backend
+/// wgpu`), one dispatch won at 2,048 nodes (9.9 against 11.5 µs a
+/// substep), tied at 32,768, and lost from 1M nodes up (0.10 against 0.07
+/// ns a node-substep at 1M, 0.09 against 0.06 at 4.2M).
+pub const FUSE_BELOW: usize = 65_536;
+
 /// Each node's contacts in contact order, as `start` offsets into
 /// `incident`, which holds a copy of each contact record per node.
 fn incidence(model: &Model<f32>) -> (Vec<u32>, Vec<GpuContact>) {
@@ -422,7 +441,7 @@ impl Wgpu {
         let nodes = groups(l.model.node_count());
         let friction = l.model.coeffs.friction > 0.0;
         let step = match self.mode {
-            Mode::Gather if friction => {
+            Mode::Gather if friction && l.model.node_count() < self.fuse_below => {
                 pass.set_pipeline(&k.fused.entries[0]);
                 pass.set_bind_group(0, &l.groups.fused[l.px][l.pv], &[]);
                 pass.dispatch_workgroups(nodes.0, nodes.1, 1);

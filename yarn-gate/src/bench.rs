@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 use yarn_model::{Backend, BackendError, Params};
-use yarn_topology::{Chart, Fabric, Geometry};
+use yarn_topology::{Chart, Fabric, Geometry, Pin, Side};
 
 use crate::GateError;
 
@@ -19,13 +19,24 @@ pub struct BenchConfig {
     /// Node-substeps per timed run; the substep count follows from the
     /// patch size, so every run does about the same work.
     pub work_per_run: u64,
+    /// The model and solver parameters of the scene (friction and gravity
+    /// among them).
+    pub params: Params,
+    /// Hold the top row in place, as a drape does.
+    pub pin_top: bool,
 }
 
 impl Default for BenchConfig {
     /// 8×8 to 64×64 stitches (512 to 32,768 nodes), 7 runs of about 20
     /// million node-substeps each.
     fn default() -> Self {
-        Self { sides: vec![8, 16, 32, 64], repeats: 7, work_per_run: 20_000_000 }
+        Self {
+            sides: vec![8, 16, 32, 64],
+            repeats: 7,
+            work_per_run: 20_000_000,
+            params: Params::default(),
+            pin_top: false,
+        }
     }
 }
 
@@ -44,6 +55,12 @@ pub struct BenchRow {
     pub contacts: usize,
     /// Substeps per timed run.
     pub substeps: u64,
+    /// Friction coefficient μ of the scene.
+    pub friction: f64,
+    /// Gravity of the scene.
+    pub gravity: f64,
+    /// Pinned nodes.
+    pub pins: usize,
     /// Median nanoseconds per node per substep.
     pub ns_per_node_substep: f64,
     /// Fastest and slowest run, same unit: the spread of the repeats.
@@ -69,8 +86,18 @@ pub fn bench<B: Backend>(
     for (k, &side) in config.sides.iter().enumerate() {
         let fabric = Fabric::from_chart(&Chart::stockinette(side, side)?, &Geometry::default())?;
         let nodes = fabric.node_count();
-        backend.load(&fabric, &Params::default())?;
-        let substeps = (config.work_per_run / nodes as u64).max(10);
+        backend.load(&fabric, &config.params)?;
+        let pins: Vec<Pin> = if config.pin_top {
+            let rest = fabric.positions();
+            fabric.side_nodes(Side::Top).into_iter().map(|node| Pin { node, target: rest[node as usize] }).collect()
+        } else {
+            Vec::new()
+        };
+        backend.set_pins(&pins)?;
+        // At least 50 substeps, so a huge fabric's run is not a handful of
+        // substeps timed against the device waking up (on an H200, 4- and
+        // 10-substep runs of 4M and 8M nodes varied 2-3x run to run).
+        let substeps = (config.work_per_run / nodes as u64).max(50);
         // Warm-up: caches, the thread pool, and the release transient.
         backend.advance(substeps / 4 + 1)?;
         let mut times = (0..config.repeats)
@@ -92,6 +119,9 @@ pub fn bench<B: Backend>(
             nodes,
             contacts: fabric.contacts().len(),
             substeps,
+            friction: config.params.friction,
+            gravity: config.params.gravity,
+            pins: pins.len(),
             ns_per_node_substep: per(median),
             ns_min: per(times[0]),
             ns_max: per(times[times.len() - 1]),
@@ -101,15 +131,16 @@ pub fn bench<B: Backend>(
     Ok(rows)
 }
 
-/// The rows as a table.
+/// The rows as a table, each row's scene (friction, gravity, pins) in its
+/// last column.
 pub fn table(rows: &[BenchRow]) -> String {
     let mut out = format!(
-        "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14} {:>16} {:>14}\n",
+        "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14} {:>16} {:>14}  scene\n",
         "backend", "threads", "size", "nodes", "contacts", "ns/node-step", "(min..max)", "substeps/s"
     );
     for r in rows {
         out += &format!(
-            "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14.2} {:>16} {:>14.0}\n",
+            "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14.2} {:>16} {:>14.0}  μ={} g={} pins={}\n",
             r.backend,
             r.threads,
             r.size,
@@ -117,7 +148,10 @@ pub fn table(rows: &[BenchRow]) -> String {
             r.contacts,
             r.ns_per_node_substep,
             format!("({:.2}..{:.2})", r.ns_min, r.ns_max),
-            r.substeps_per_s
+            r.substeps_per_s,
+            r.friction,
+            r.gravity,
+            r.pins
         );
     }
     out

@@ -117,6 +117,16 @@ struct BenchArgs {
     /// Timed runs per row; the median is reported.
     #[arg(long, default_value_t = 7)]
     repeats: usize,
+    /// Friction coefficient μ of the scene; 0 turns the friction pass off
+    /// [default: the model's default].
+    #[arg(long)]
+    friction: Option<f64>,
+    /// Gravity of the scene (model units per s²).
+    #[arg(long, default_value_t = 0.0)]
+    gravity: f64,
+    /// Hold each patch's top row in place, as a drape does.
+    #[arg(long)]
+    pin_top: bool,
     /// Print a JSON array of rows instead of the table.
     #[arg(long)]
     json: bool,
@@ -218,7 +228,15 @@ fn check(args: &CheckArgs) -> Result<CheckReport, GateError> {
 }
 
 fn run_bench(args: &BenchArgs) -> Result<Vec<yarn_gate::bench::BenchRow>, GateError> {
-    let config = BenchConfig { sides: args.sizes.clone(), repeats: args.repeats.max(1), ..BenchConfig::default() };
+    let defaults = Params::default();
+    let params = Params { friction: args.friction.unwrap_or(defaults.friction), gravity: args.gravity, ..defaults };
+    let config = BenchConfig {
+        sides: args.sizes.clone(),
+        repeats: args.repeats.max(1),
+        params,
+        pin_top: args.pin_top,
+        ..BenchConfig::default()
+    };
     let mut rows = Vec::new();
     for name in &args.backend {
         let bar = progress_bar(0, "{msg:>12} [{bar:40}] {pos}/{len} timed runs");
@@ -255,7 +273,7 @@ fn plotdata(args: &PlotdataArgs) -> Result<Vec<std::path::PathBuf>, GateError> {
     let mut written = Vec::new();
     written.extend(plot::figure2(&args.out, &relaxation, Params::gate().substep)?);
     written.extend(plot::figure3(&args.out, &probes)?);
-    let config = BenchConfig { sides: vec![8, 16, 32, 64], repeats: 3, work_per_run: 2_000_000 };
+    let config = BenchConfig { repeats: 3, work_per_run: 2_000_000, ..BenchConfig::default() };
     let mut rows = Vec::new();
     for name in &args.scaling {
         let bar = progress_bar(0, "{msg:>12} [{bar:40}] {pos}/{len} timed runs");

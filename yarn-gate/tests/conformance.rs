@@ -75,6 +75,15 @@ conformance!(rayon_global_pool, cpu(Rayon::new), Tolerance::CPU_F32);
 conformance!(rayon_one_thread, cpu(|| Rayon::with_threads(1).unwrap()), Tolerance::CPU_F32);
 conformance!(rayon_three_threads, cpu(|| Rayon::with_threads(3).unwrap()), Tolerance::CPU_F32);
 conformance!(wgpu_gather, wgpu(Mode::Gather), Tolerance::GPU_GATHER);
+conformance!(
+    wgpu_gather_two_pass,
+    gpu().map(|gpu| move || {
+        let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
+        backend.set_fuse_below(0);
+        backend
+    }),
+    Tolerance::GPU_GATHER
+);
 conformance!(wgpu_fixed_point, wgpu(Mode::FixedPointAtomic), Tolerance::GPU_FIXED_POINT);
 
 /// Serial f32 against Serial f64 over the gate's 12,000-substep relaxation:
