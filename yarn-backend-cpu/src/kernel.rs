@@ -27,11 +27,12 @@
 //! agrees with [`yarn_model::step::substep`] to float rounding (only the
 //! order of each node's sum differs).
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 use rayon::prelude::*;
 use yarn_model::terms::{MIN_SIN_THETA, gravity_force};
-use yarn_model::{BackendError, Model, Params, Real, State, V3};
+use yarn_model::{BackendError, ContactRest, Model, Params, Real, State, V3};
 use yarn_topology::{Fabric, Pin};
 
 /// Nodes per block: a block's `f32` scratch (16 numbers per node) fits the
@@ -194,7 +195,11 @@ pub(crate) struct Kernel<T: Real> {
     velocities: Field<T>,
     /// κθ0 of every joint, refreshed with the parameters.
     target: Vec<T>,
-    /// The contacts of node i are `incident[start[i]..start[i + 1]]`.
+    /// The alive contacts, in contact order: the contact passes run over
+    /// these only, so released contacts cost nothing.
+    live: Vec<ContactRest<T>>,
+    /// The alive contacts of node i are `incident[start[i]..start[i + 1]]`,
+    /// each naming its slot in `live`.
     start: Vec<u32>,
     incident: Vec<Incidence<T>>,
     /// Per contact, in blocks of [`BLOCK`] contacts: the force on its `a`
@@ -208,6 +213,14 @@ pub(crate) struct Kernel<T: Real> {
     /// each is locked only by its own thread.
     scratch: Vec<Mutex<Scratch<T>>>,
     exec: Exec,
+    /// Substeps completed since load.
+    substeps: u64,
+    /// Set by a block whose damped velocity passed the divergence speed (or
+    /// is not finite) in the last substep.
+    diverged: AtomicBool,
+    /// The state at the start of the current `advance`, to put back if it
+    /// diverges.
+    saved: [Field<T>; 2],
 }
 
 impl<T: Real> Kernel<T> {
@@ -215,30 +228,50 @@ impl<T: Real> Kernel<T> {
     pub(crate) fn new(fabric: &Fabric, params: &Params, exec: Exec, threads: usize) -> Result<Self, BackendError> {
         let model = Model::<T>::new(fabric, params)?;
         let n = model.node_count();
-        let (start, entries) = model.incidence();
-        let incident = entries
-            .into_iter()
-            .map(|(node, contact)| {
-                let sign = if model.contacts[contact as usize].a == node { T::one() } else { -T::one() };
-                Incidence { node, contact, sign }
-            })
-            .collect();
         let state = State::<T>::at_rest(fabric);
         let mut kernel = Self {
             positions: Field::from_vectors(&state.positions),
             velocities: Field::from_vectors(&state.velocities),
             target: Vec::new(),
-            start,
-            incident,
-            contact_force: Field::zeros(model.contacts.len()),
-            friction: Field::zeros(model.contacts.len()),
+            live: Vec::new(),
+            start: Vec::new(),
+            incident: Vec::new(),
+            contact_force: Field::zeros(0),
+            friction: Field::zeros(0),
             next_positions: Field::zeros(n),
             scratch: (0..threads.max(1)).map(|_| Mutex::new(Scratch::new())).collect(),
             exec,
+            substeps: 0,
+            diverged: AtomicBool::new(false),
+            saved: [Field::zeros(n), Field::zeros(n)],
             model,
         };
         kernel.refresh_targets();
+        kernel.refresh_contacts();
         Ok(kernel)
+    }
+
+    /// Rebuild the alive contacts, their per-node lists and their buffers
+    /// from the model's liveness.
+    fn refresh_contacts(&mut self) {
+        let model = &self.model;
+        let (start, entries) = model.incidence();
+        let mut slot = vec![u32::MAX; model.contacts.len()];
+        self.live.clear();
+        for (k, c) in model.contacts.iter().enumerate().filter(|&(k, _)| model.alive[k]) {
+            slot[k] = self.live.len() as u32;
+            self.live.push(*c);
+        }
+        self.incident = entries
+            .into_iter()
+            .map(|(node, contact)| {
+                let sign = if model.contacts[contact as usize].a == node { T::one() } else { -T::one() };
+                Incidence { node, contact: slot[contact as usize], sign }
+            })
+            .collect();
+        self.start = start;
+        self.contact_force = Field::zeros(self.live.len());
+        self.friction = Field::zeros(self.live.len());
     }
 
     fn refresh_targets(&mut self) {
@@ -257,7 +290,9 @@ impl<T: Real> Kernel<T> {
     }
 
     pub(crate) fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
-        self.model.set_contacts_alive(alive)
+        self.model.set_contacts_alive(alive)?;
+        self.refresh_contacts();
+        Ok(())
     }
 
     pub(crate) fn write_state(&mut self, state: &State<T>) -> Result<(), BackendError> {
@@ -316,7 +351,7 @@ impl<T: Real> Kernel<T> {
     /// `velocities`, v_b − v_a into `scratch.relative`: the scattered loads
     /// in one scalar loop, so the arithmetic after them vectorises.
     fn gather_contacts(&self, range: std::ops::Range<usize>, velocities: Option<&Field<T>>, scratch: &mut Scratch<T>) {
-        let contacts = &self.model.contacts[range];
+        let contacts = &self.live[range];
         for (field, out) in
             [(&self.positions, &mut scratch.gap)].into_iter().chain(velocities.map(|v| (v, &mut scratch.relative)))
         {
@@ -327,36 +362,35 @@ impl<T: Real> Kernel<T> {
         }
     }
 
-    /// Contact block `b`: the operations of `terms::spring_force`, zeroed
-    /// for dead contacts.
+    /// Contact block `b` of the alive contacts: the operations of
+    /// `terms::spring_force`.
     fn contact_block_forces(&self, b: usize, out: &mut BlockMut<'_, T>, scratch: &mut Scratch<T>) {
         let range = b * BLOCK..b * BLOCK + out.x.len();
         self.gather_contacts(range.clone(), None, scratch);
         let k_c = self.model.coeffs.contact;
         let (zero, one) = (T::zero(), T::one());
-        let contacts = &self.model.contacts[range.clone()];
-        let alive = &self.model.alive[range];
+        let contacts = &self.live[range];
         let m = contacts.len();
         let (dx, dy, dz) = (&scratch.gap.x[..m], &scratch.gap.y[..m], &scratch.gap.z[..m]);
         let (fx, fy, fz) = (&mut out.x[..m], &mut out.y[..m], &mut out.z[..m]);
         for j in 0..m {
             let (x, y, z) = (dx[j], dy[j], dz[j]);
             let length = (x * x + y * y + z * z).sqrt();
-            let (divisor, keep) = if alive[j] && length > zero { (length, one) } else { (one, zero) };
+            let (divisor, keep) = if length > zero { (length, one) } else { (one, zero) };
             let scale = k_c * (length - contacts[j].rest) / divisor * keep;
             (fx[j], fy[j], fz[j]) = (x * scale, y * scale, z * scale);
         }
     }
 
-    /// Contact block `b`: the operations of `step::friction_change` from x
-    /// and v*, zeroed where it returns `None` or the contact is dead.
+    /// Contact block `b` of the alive contacts: the operations of
+    /// `step::friction_change` from x and v*, zeroed where it returns
+    /// `None`.
     fn friction_block(&self, b: usize, out: &mut BlockMut<'_, T>, scratch: &mut Scratch<T>) {
         let range = b * BLOCK..b * BLOCK + out.x.len();
         self.gather_contacts(range.clone(), Some(&self.velocities), scratch);
         let c = self.model.coeffs;
         let (zero, one) = (T::zero(), T::one());
-        let contacts = &self.model.contacts[range.clone()];
-        let alive = &self.model.alive[range];
+        let contacts = &self.live[range];
         let m = contacts.len();
         let (dx, dy, dz) = (&scratch.gap.x[..m], &scratch.gap.y[..m], &scratch.gap.z[..m]);
         let (wx, wy, wz) = (&scratch.relative.x[..m], &scratch.relative.y[..m], &scratch.relative.z[..m]);
@@ -364,7 +398,7 @@ impl<T: Real> Kernel<T> {
         for j in 0..m {
             let rest = contacts[j].rest;
             let length = (dx[j] * dx[j] + dy[j] * dy[j] + dz[j] * dz[j]).sqrt();
-            let compressed = alive[j] && length < rest && length > zero;
+            let compressed = length < rest && length > zero;
             let divisor = if compressed { length } else { one };
             let n = [dx[j] / divisor, dy[j] / divisor, dz[j] / divisor];
             let normal = wx[j] * n[0] + wy[j] * n[1] + wz[j] * n[2];
@@ -489,9 +523,35 @@ impl<T: Real> Kernel<T> {
         }
     }
 
+    /// Advance `substeps` substeps. A substep whose damped velocities pass
+    /// the model's divergence speed, or turn non-finite, ends the call with
+    /// [`BackendError::Diverged`], the state put back as it was before it.
+    pub(crate) fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
+        self.saved[0].clone_from(&self.positions);
+        self.saved[1].clone_from(&self.velocities);
+        for done in 1..=substeps {
+            self.substep();
+            if self.diverged.swap(false, Ordering::Relaxed) {
+                let limit = self.model.divergence_speed();
+                let mut state = State::default();
+                self.read_state(&mut state);
+                // The flag looks at v* before friction and pins; the state
+                // after them names the node, or the first node past the
+                // limit before them if they tamed it.
+                let (node, speed) = state.first_diverged(limit).unwrap_or((0, f64::NAN));
+                self.positions.clone_from(&self.saved[0]);
+                self.velocities.clone_from(&self.saved[1]);
+                return Err(BackendError::Diverged { substep: self.substeps + done, node, speed, limit });
+            }
+        }
+        self.substeps += substeps;
+        Ok(())
+    }
+
     /// One substep: four passes, or two without friction.
     pub(crate) fn substep(&mut self) {
         let c = self.model.coeffs;
+        let limit = T::of(self.model.divergence_speed());
         let apply_friction = c.friction > T::zero();
         self.contact_forces();
         // Pass 2: per block, all forces and the damped velocity update v*,
@@ -509,6 +569,11 @@ impl<T: Real> Kernel<T> {
                 {
                     for (v, f) in v.iter_mut().zip(f) {
                         *v = (*v + *f * c.h_over_m) * c.damping_factor;
+                    }
+                    // A NaN fails the comparison, so it is not `within`; the
+                    // fold vectorises.
+                    if !v.iter().fold(true, |within, v| within & (v.abs() <= limit)) {
+                        this.diverged.store(true, Ordering::Relaxed);
                     }
                     if !apply_friction {
                         for ((next_x, x), v) in next_x.iter_mut().zip(x).zip(&*v) {

@@ -100,11 +100,7 @@ impl<T: Real> Backend for Serial<T> {
     }
 
     fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
-        let kernel = self.kernel()?;
-        for _ in 0..substeps {
-            kernel.substep();
-        }
-        Ok(())
+        self.kernel()?.advance(substeps)
     }
 }
 
@@ -121,6 +117,8 @@ struct Loaded<T: Real> {
     model: Model<T>,
     state: State<T>,
     scratch: step::Scratch<T>,
+    /// Substeps completed since load.
+    substeps: u64,
 }
 
 impl<T: Real> Reference<T> {
@@ -143,7 +141,8 @@ impl<T: Real> Backend for Reference<T> {
 
     fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError> {
         let model = Model::new(fabric, params)?;
-        self.loaded = Some(Loaded { model, state: State::at_rest(fabric), scratch: step::Scratch::default() });
+        self.loaded =
+            Some(Loaded { model, state: State::at_rest(fabric), scratch: step::Scratch::default(), substeps: 0 });
         Ok(())
     }
 
@@ -178,10 +177,16 @@ impl<T: Real> Backend for Reference<T> {
     }
 
     fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
-        let Loaded { model, state, scratch } = self.loaded()?;
-        for _ in 0..substeps {
+        let Loaded { model, state, scratch, substeps: done } = self.loaded()?;
+        let (saved, limit) = (state.clone(), model.divergence_speed());
+        for k in 1..=substeps {
             step::substep(model, state, scratch);
+            if let Some((node, speed)) = state.first_diverged(limit) {
+                *state = saved;
+                return Err(BackendError::Diverged { substep: *done + k, node, speed, limit });
+            }
         }
+        *done += substeps;
         Ok(())
     }
 }
@@ -220,6 +225,39 @@ mod tests {
         ));
         assert!(serial.set_params(&Params { damping: -1.0, ..Params::default() }).is_err());
         assert_eq!(serial.state().unwrap(), before, "refused input changed the state");
+    }
+
+    /// A node flung far from its neighbours makes the next substep blow up:
+    /// every CPU backend stops with `Diverged`, naming the substep, and
+    /// leaves the state as it was before the call; a sane state then runs on.
+    #[test]
+    fn divergence_is_reported_and_rolled_back() {
+        fn check<B: Backend>(mut backend: B) {
+            let fabric = patch();
+            backend.load(&fabric, &Params { friction: 0.0, ..Params::default() }).unwrap();
+            backend.advance(5).unwrap();
+            let mut flung = backend.state().unwrap();
+            let good = flung.clone();
+            flung.positions[7].x += <B::Real as Real>::of(1e4);
+            backend.write_state(&flung).unwrap();
+            match backend.advance(20) {
+                Err(BackendError::Diverged { substep: 6, node, speed, limit }) => {
+                    assert!(speed > limit && [6, 7, 8].contains(&node), "{}: node {node} at {speed}", backend.name());
+                }
+                other => panic!("{}: expected a divergence at substep 6, got {other:?}", backend.name()),
+            }
+            assert_eq!(backend.state().unwrap(), flung, "{}: the state was not rolled back", backend.name());
+            let mut nan = good.clone();
+            nan.velocities[3].y = <B::Real as Real>::of(f64::NAN);
+            backend.write_state(&nan).unwrap();
+            assert!(matches!(backend.advance(1), Err(BackendError::Diverged { substep: 6, .. })), "{}", backend.name());
+            backend.write_state(&good).unwrap();
+            backend.advance(20).expect("a sane state runs on");
+        }
+        check(Serial::<f32>::new());
+        check(Serial::<f64>::new());
+        check(Reference::<f64>::new());
+        check(Rayon::with_threads(2).unwrap());
     }
 
     /// The conformance suite holds every f32 backend to `Reference<f32>`;

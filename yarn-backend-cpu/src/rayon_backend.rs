@@ -35,13 +35,12 @@ impl Rayon {
     /// Run `work` on the kernel inside the pool (or rayon's global pool),
     /// so its passes start from a worker thread instead of each blocking
     /// the calling thread until a worker picks it up.
-    fn install(&mut self, work: impl FnOnce(&mut Kernel<f32>) + Send) -> Result<(), BackendError> {
+    fn install<R: Send>(&mut self, work: impl FnOnce(&mut Kernel<f32>) -> R + Send) -> Result<R, BackendError> {
         let kernel = self.kernel.as_mut().ok_or(BackendError::NotLoaded)?;
-        match &self.pool {
+        Ok(match &self.pool {
             Some(pool) => pool.install(|| work(kernel)),
             None => rayon::scope(|_| work(kernel)),
-        }
-        Ok(())
+        })
     }
 }
 
@@ -68,10 +67,6 @@ impl Backend for Rayon {
     }
 
     fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
-        self.install(|kernel| {
-            for _ in 0..substeps {
-                kernel.substep();
-            }
-        })
+        self.install(|kernel| kernel.advance(substeps))?
     }
 }

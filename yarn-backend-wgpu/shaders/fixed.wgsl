@@ -1,8 +1,8 @@
 // Fixed-point mode, the paper's scheme (its Algorithm 1 and Appendix C):
 // every element scatters round(f·S) into three i32 accumulators per node
-// with atomicAdd. A force too large to quantise, or a sum that wraps, sets
-// `overflow[0]`, which the host checks after the batch; nothing wraps
-// silently.
+// with atomicAdd. A force too large to quantise, or a sum that wraps, raises
+// OVERFLOWED in `status[0]`, which the host checks after the batch; nothing
+// wraps silently.
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> x: array<vec4<f32>>;
@@ -11,13 +11,13 @@
 @group(0) @binding(4) var<storage, read> chain: array<vec2<f32>>;
 @group(0) @binding(5) var<storage, read> contacts: array<Contact>;
 @group(0) @binding(6) var<storage, read_write> acc: array<atomic<i32>>;
-@group(0) @binding(7) var<storage, read_write> overflow: array<atomic<u32>>;
+@group(0) @binding(7) var<storage, read_write> status: array<atomic<u32>>;
 
 fn add(node: u32, f: vec3<f32>) {
     let q = f * p.scale;
     // Also catches NaN, which fails every comparison.
     if !(abs(q.x) <= p.max_force * p.scale && abs(q.y) <= p.max_force * p.scale && abs(q.z) <= p.max_force * p.scale) {
-        atomicStore(&overflow[0], 1u);
+        atomicOr(&status[0], OVERFLOWED);
         return;
     }
     let quanta = vec3<i32>(round(q));
@@ -26,7 +26,7 @@ fn add(node: u32, f: vec3<f32>) {
         let sum = old + quanta[c];
         // Two's-complement overflow: both addends' signs differ from the sum's.
         if ((old ^ sum) & (quanta[c] ^ sum)) < 0 {
-            atomicStore(&overflow[0], 1u);
+            atomicOr(&status[0], OVERFLOWED);
         }
     }
 }

@@ -130,7 +130,7 @@ impl Gpu {
             gather: build(
                 &device,
                 &shaders::GATHER,
-                &[Uniform, Read, ReadWrite, ReadWrite, Read, Read, Read],
+                &[Uniform, Read, ReadWrite, ReadWrite, Read, Read, Read, ReadWrite],
                 ["step", "forces"],
             ),
             fixed: build(
@@ -149,7 +149,7 @@ impl Gpu {
             fused: build(
                 &device,
                 &shaders::FUSED,
-                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, Read],
+                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, Read, ReadWrite],
                 ["main"],
             ),
         };

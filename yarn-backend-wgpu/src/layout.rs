@@ -26,7 +26,9 @@ pub(crate) struct GpuParams {
     pub(crate) max_force: f32,
     /// Always 1.0: see `mul` in `common.wgsl`.
     pub(crate) one: f32,
-    pub(crate) pad: [f32; 3],
+    /// The divergence speed.
+    pub(crate) max_speed: f32,
+    pub(crate) pad: [f32; 2],
 }
 
 /// `Params::flags` bit: friction is on, so the move is in the friction pass.
@@ -34,6 +36,12 @@ pub(crate) const FRICTION_ON: u32 = 1;
 
 /// `Params::flags` bit: the device's `fma` is fused (see `probe.wgsl`).
 pub(crate) const FUSED_FMA: u32 = 2;
+
+/// `status[0]` bit: a fixed-point force or sum overflowed.
+pub(crate) const OVERFLOWED: u32 = 1;
+
+/// `status[0]` bit: a velocity diverged.
+pub(crate) const DIVERGED: u32 = 2;
 
 /// Mirrors `Contact`.
 #[repr(C)]
@@ -97,9 +105,9 @@ mod tests {
             offset_of!(GpuParams, scale),
             offset_of!(GpuParams, max_force),
             offset_of!(GpuParams, one),
+            offset_of!(GpuParams, max_speed),
             offset_of!(GpuParams, pad),
             offset_of!(GpuParams, pad) + 4,
-            offset_of!(GpuParams, pad) + 8,
         ];
         assert_eq!(members.len(), rust.len(), "field count differs: {members:?}");
         for ((name, wgsl), rust) in members.iter().zip(rust) {
@@ -130,5 +138,7 @@ mod tests {
         let common = shaders::COMMON;
         assert!(common.contains(&format!("const FRICTION_ON: u32 = {FRICTION_ON}u;")), "FRICTION_ON differs");
         assert!(common.contains(&format!("const FUSED_FMA: u32 = {FUSED_FMA}u;")), "FUSED_FMA differs");
+        assert!(common.contains(&format!("const OVERFLOWED: u32 = {OVERFLOWED}u;")), "OVERFLOWED differs");
+        assert!(common.contains(&format!("const DIVERGED: u32 = {DIVERGED}u;")), "DIVERGED differs");
     }
 }

@@ -53,7 +53,7 @@ use std::sync::Arc;
 
 use bytemuck::Pod;
 pub use gpu::{Gpu, GpuError, read_mapped};
-use layout::{FRICTION_ON, FUSED_FMA, GpuContact, GpuParams, GpuPin};
+use layout::{DIVERGED, FRICTION_ON, FUSED_FMA, GpuContact, GpuParams, GpuPin, OVERFLOWED};
 pub use wgpu;
 use wgpu::util::DeviceExt;
 use yarn_model::terms::MIN_SIN_THETA;
@@ -246,12 +246,13 @@ struct Buffers {
     incident: wgpu::Buffer,
     pins: wgpu::Buffer,
     pin_count: u32,
-    /// Fixed-point accumulators (three i32 per node) and overflow flag.
+    /// Fixed-point accumulators (three i32 per node).
     acc: wgpu::Buffer,
-    overflow: wgpu::Buffer,
-    /// Fixed point only: the positions and velocities a batch started from,
-    /// put back if it overflows.
-    snapshot: Option<[wgpu::Buffer; 2]>,
+    /// `status[0]`: the OVERFLOWED and DIVERGED bits a batch raised.
+    status: wgpu::Buffer,
+    /// The positions and velocities a batch started from, put back if it
+    /// overflows or diverges.
+    snapshot: [wgpu::Buffer; 2],
 }
 
 /// Bind groups by `[px][pv]`: the forces pass writing the next positions,
@@ -285,8 +286,9 @@ impl Loaded {
             min_sin: MIN_SIN_THETA as f32,
             scale: FIXED_POINT_SCALE,
             max_force: max_force() as f32,
+            max_speed: self.model.divergence_speed() as f32,
             one: 1.0,
-            pad: [0.0; 3],
+            pad: [0.0; 2],
         }
     }
 }
@@ -345,7 +347,7 @@ fn gpu_contacts(model: &Model<f32>) -> Vec<GpuContact> {
 /// ns a node-substep at 1M, 0.09 against 0.06 at 4.2M).
 pub const FUSE_BELOW: usize = 65_536;
 
-/// Each node's contacts in contact order, as `start` offsets into
+/// Each node's alive contacts in contact order, as `start` offsets into
 /// `incident`, which holds a copy of each contact record per node.
 fn incidence(model: &Model<f32>) -> (Vec<u32>, Vec<GpuContact>) {
     let contacts = gpu_contacts(model);
@@ -397,12 +399,13 @@ impl Wgpu {
         // force buffer (`probe`).
         let forces_pass = |label, px: usize, pv: usize, out: &wgpu::Buffer| match self.mode {
             Mode::Gather => {
-                self.bind(&k.gather.layout, label, &[&b.params, &x[px], &v[pv], out, &b.chain, &b.start, &b.incident])
+                let buffers = [&b.params, &x[px], &v[pv], out, &b.chain, &b.start, &b.incident, &b.status];
+                self.bind(&k.gather.layout, label, &buffers)
             }
             Mode::FixedPointAtomic => self.bind(
                 &k.fixed.layout,
                 label,
-                &[&b.params, &x[px], &v[pv], out, &b.chain, &b.contacts, &b.acc, &b.overflow],
+                &[&b.params, &x[px], &v[pv], out, &b.chain, &b.contacts, &b.acc, &b.status],
             ),
         };
         Groups {
@@ -414,7 +417,8 @@ impl Wgpu {
             }),
             pins: table(&|px, pv| self.bind(&k.pins.layout, "pins", &[&b.params, &x[px], &v[pv], &b.pins])),
             fused: table(&|px, pv| {
-                let buffers = [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.chain, &b.start, &b.incident];
+                let buffers =
+                    [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.chain, &b.start, &b.incident, &b.status];
                 self.bind(&k.fused.layout, "fused", &buffers)
             }),
         }
@@ -483,11 +487,10 @@ impl Wgpu {
         let (px, pv, first) = (l.px, l.pv, l.substeps);
         let device = &self.gpu.device;
         let mut encoder = device.create_command_encoder(&Default::default());
-        // Fixed point can fail mid-batch: keep the state it started from.
-        if let Some([x, v]) = &l.buffers.snapshot {
-            encoder.copy_buffer_to_buffer(&l.buffers.x[px], 0, x, 0, x.size());
-            encoder.copy_buffer_to_buffer(&l.buffers.v[pv], 0, v, 0, v.size());
-        }
+        // A batch can fail part way: keep the state it started from.
+        let [saved_x, saved_v] = &l.buffers.snapshot;
+        encoder.copy_buffer_to_buffer(&l.buffers.x[px], 0, saved_x, 0, saved_x.size());
+        encoder.copy_buffer_to_buffer(&l.buffers.v[pv], 0, saved_v, 0, saved_v.size());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             for _ in 0..substeps {
@@ -496,11 +499,12 @@ impl Wgpu {
         }
         self.gpu.queue.submit([encoder.finish()]);
         l.substeps += substeps;
-        let result = self.check_overflow(l, first, l.substeps);
-        if let (Err(BackendError::Overflow { .. }), Some([x, v])) = (&result, &l.buffers.snapshot) {
+        let result = self.check_status(l, first, l.substeps);
+        if result.is_err() {
+            let [saved_x, saved_v] = &l.buffers.snapshot;
             let mut encoder = device.create_command_encoder(&Default::default());
-            encoder.copy_buffer_to_buffer(x, 0, &l.buffers.x[px], 0, x.size());
-            encoder.copy_buffer_to_buffer(v, 0, &l.buffers.v[pv], 0, v.size());
+            encoder.copy_buffer_to_buffer(saved_x, 0, &l.buffers.x[px], 0, saved_x.size());
+            encoder.copy_buffer_to_buffer(saved_v, 0, &l.buffers.v[pv], 0, saved_v.size());
             self.gpu.queue.submit([encoder.finish()]);
             (l.px, l.pv, l.substeps) = (px, pv, first);
             self.finish()?;
@@ -508,19 +512,30 @@ impl Wgpu {
         result
     }
 
-    /// Wait for the GPU; in fixed-point mode, read and clear the overflow
-    /// flag and report it for substeps `first..end`.
-    fn check_overflow(&self, l: &Loaded, first: u64, end: u64) -> Result<(), BackendError> {
+    /// Wait for the GPU, then read and clear the status the batch of
+    /// substeps `first..end` raised: a fixed-point overflow, or a diverged
+    /// velocity, which the read-back state then names. In the browser,
+    /// where nothing may wait, only device errors are reported.
+    fn check_status(&self, l: &Loaded, first: u64, end: u64) -> Result<(), BackendError> {
         self.finish()?;
-        if self.mode != Mode::FixedPointAtomic {
+        if cfg!(target_arch = "wasm32") {
             return Ok(());
         }
-        let flag = self.read(&l.buffers.overflow, 4)?;
-        if flag.iter().any(|&b| b != 0) {
-            self.gpu.queue.write_buffer(&l.buffers.overflow, 0, &[0u8; 4]);
+        let status = bytemuck::pod_read_unaligned::<u32>(&self.read(&l.buffers.status, 4)?);
+        if status & (OVERFLOWED | DIVERGED) == 0 {
+            return Ok(());
+        }
+        self.gpu.queue.write_buffer(&l.buffers.status, 0, &[0u8; 4]);
+        if status & OVERFLOWED != 0 {
             return Err(BackendError::Overflow { first, end, max_force: max_force() });
         }
-        Ok(())
+        let limit = l.model.divergence_speed();
+        let n = l.model.node_count();
+        let mut state = State { positions: Vec::new(), velocities: Vec::new() };
+        self.read_vectors(&l.buffers.x[l.px], n, &mut state.positions)?;
+        self.read_vectors(&l.buffers.v[l.pv], n, &mut state.velocities)?;
+        let (node, speed) = state.first_diverged(f64::from(limit as f32)).unwrap_or((0, f64::NAN));
+        Err(BackendError::Diverged { substep: end, node, speed, limit })
     }
 }
 
@@ -559,15 +574,13 @@ impl Backend for Wgpu {
             pins: storage(device, "pins", &[0u32; 4]),
             pin_count: 0,
             acc: storage(device, "accumulators", &vec![0i32; 3 * n]),
-            overflow: storage(device, "overflow", &[0u32; 4]),
-            snapshot: (self.mode == Mode::FixedPointAtomic).then(|| {
-                [x.len(), v.len()].map(|elements| {
-                    device.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some("snapshot"),
-                        size: (elements.max(1) * 16) as u64,
-                        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-                        mapped_at_creation: false,
-                    })
+            status: storage(device, "status", &[0u32; 4]),
+            snapshot: [x.len(), v.len()].map(|elements| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("snapshot"),
+                    size: (elements.max(1) * 16) as u64,
+                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
                 })
             }),
         };
@@ -601,7 +614,13 @@ impl Backend for Wgpu {
         let loaded = self.loaded.as_ref().ok_or(BackendError::NotLoaded)?;
         let queue = &self.gpu.queue;
         queue.write_buffer(&loaded.buffers.contacts, 0, bytemuck::cast_slice(&gpu_contacts(&loaded.model)));
-        queue.write_buffer(&loaded.buffers.incident, 0, bytemuck::cast_slice(&incidence(&loaded.model).1));
+        // Only alive contacts are listed per node, so a released contact
+        // costs the gather nothing.
+        let (start, incident) = incidence(&loaded.model);
+        queue.write_buffer(&loaded.buffers.start, 0, bytemuck::cast_slice(&start));
+        if !incident.is_empty() {
+            queue.write_buffer(&loaded.buffers.incident, 0, bytemuck::cast_slice(&incident));
+        }
         Ok(())
     }
 
@@ -646,7 +665,7 @@ impl Backend for Wgpu {
             pass.dispatch_workgroups(gx, gy, 1);
         }
         self.gpu.queue.submit([encoder.finish()]);
-        self.check_overflow(loaded, loaded.substeps, loaded.substeps)?;
+        self.check_status(loaded, loaded.substeps, loaded.substeps)?;
         self.read_vectors(&loaded.buffers.forces, n, forces)
     }
 

@@ -1,5 +1,5 @@
 //! The GPU backend's own behaviour on a real adapter: refusals, the
-//! fixed-point overflow report and restore. Agreement with the CPU is the
+//! fixed-point overflow and divergence reports and restores. Agreement with the CPU is the
 //! conformance suite's job (`yarn-gate/tests/conformance.rs`).
 
 use std::sync::{Arc, OnceLock};
@@ -63,8 +63,9 @@ fn gather_has_no_quantum_to_overflow() {
     backend.write_state(&wild).unwrap();
     let forces = backend.forces().unwrap();
     assert!(forces[10].norm() > 1e6, "the spring pulls back hard: {}", forces[10].norm());
-    backend.advance(1).unwrap();
-    assert!(backend.state().unwrap().positions.iter().all(|p| p.iter().all(|c| c.is_finite())));
+    // No overflow: the absurd pull is caught as the divergence it is.
+    assert!(matches!(backend.advance(1), Err(BackendError::Diverged { substep: 1, .. })));
+    assert_eq!(backend.state().unwrap(), wild);
 }
 
 #[test]
@@ -90,4 +91,42 @@ fn refusals_name_the_problem_and_keep_the_state() {
     let state = backend.state().unwrap();
     assert_eq!(state.positions[4], V3::new(1.0, 2.0, 3.0));
     assert_eq!(state.velocities[4], V3::zeros());
+}
+
+/// A node flung at an absurd speed, or given a NaN velocity, ends the
+/// call with `Diverged` in both modes, naming the node, and the state is
+/// as before the call; a sane state then runs on. (One substep: left to
+/// run, the flung node would go on to overflow fixed point's forces too,
+/// and an overflow is what a batch with both reports.)
+#[test]
+fn divergence_is_reported_and_the_state_kept() {
+    let Some(gpu) = gpu() else { return };
+    let fabric = patch();
+    for mode in [Mode::Gather, Mode::FixedPointAtomic] {
+        for friction in [0.0, 0.3] {
+            let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), mode);
+            backend.load(&fabric, &Params { friction, ..Params::default() }).unwrap();
+            backend.advance(5).unwrap();
+            let good = backend.state().unwrap();
+            let mut flung = good.clone();
+            flung.velocities[10] = V3::new(0.0, 1e7, 0.0);
+            backend.write_state(&flung).unwrap();
+            match backend.advance(1) {
+                Err(BackendError::Diverged { substep: 6, node, speed, limit }) => {
+                    assert!(speed > limit, "{mode:?} μ={friction}: node {node} at {speed} under {limit}");
+                }
+                other => panic!("{mode:?} μ={friction}: expected a divergence, got {other:?}"),
+            }
+            assert_eq!(backend.state().unwrap(), flung, "{mode:?} μ={friction}: not rolled back");
+            let mut nan = good.clone();
+            nan.velocities[4].x = f32::NAN;
+            backend.write_state(&nan).unwrap();
+            match backend.advance(1) {
+                Err(BackendError::Diverged { substep: 6, node: 4, speed, .. }) => assert!(speed.is_nan()),
+                other => panic!("{mode:?} μ={friction}: expected a divergence, got {other:?}"),
+            }
+            backend.write_state(&good).unwrap();
+            backend.advance(50).expect("a sane state runs on");
+        }
+    }
 }

@@ -24,6 +24,9 @@ pub struct BenchConfig {
     pub params: Params,
     /// Hold the top row in place, as a drape does.
     pub pin_top: bool,
+    /// The fraction of contacts released, the last in yarn order first (the
+    /// top rows, as after unravelling).
+    pub dead: f64,
 }
 
 impl Default for BenchConfig {
@@ -36,6 +39,7 @@ impl Default for BenchConfig {
             work_per_run: 20_000_000,
             params: Params::default(),
             pin_top: false,
+            dead: 0.0,
         }
     }
 }
@@ -61,6 +65,8 @@ pub struct BenchRow {
     pub gravity: f64,
     /// Pinned nodes.
     pub pins: usize,
+    /// Released contacts.
+    pub dead_contacts: usize,
     /// Median nanoseconds per node per substep.
     pub ns_per_node_substep: f64,
     /// Fastest and slowest run, same unit: the spread of the repeats.
@@ -94,6 +100,9 @@ pub fn bench<B: Backend>(
             Vec::new()
         };
         backend.set_pins(&pins)?;
+        let contacts = fabric.contacts().len();
+        let alive_contacts = contacts - (config.dead.clamp(0.0, 1.0) * contacts as f64).round() as usize;
+        backend.set_contacts_alive(&(0..contacts).map(|k| k < alive_contacts).collect::<Vec<_>>())?;
         // At least 50 substeps, so a huge fabric's run is not a handful of
         // substeps timed against the device waking up (on an H200, 4- and
         // 10-substep runs of 4M and 8M nodes varied 2-3x run to run).
@@ -122,6 +131,7 @@ pub fn bench<B: Backend>(
             friction: config.params.friction,
             gravity: config.params.gravity,
             pins: pins.len(),
+            dead_contacts: contacts - alive_contacts,
             ns_per_node_substep: per(median),
             ns_min: per(times[0]),
             ns_max: per(times[times.len() - 1]),
@@ -140,7 +150,7 @@ pub fn table(rows: &[BenchRow]) -> String {
     );
     for r in rows {
         out += &format!(
-            "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14.2} {:>16} {:>14.0}  μ={} g={} pins={}\n",
+            "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14.2} {:>16} {:>14.0}  μ={} g={} pins={} dead={}\n",
             r.backend,
             r.threads,
             r.size,
@@ -151,7 +161,8 @@ pub fn table(rows: &[BenchRow]) -> String {
             r.substeps_per_s,
             r.friction,
             r.gravity,
-            r.pins
+            r.pins,
+            r.dead_contacts
         );
     }
     out

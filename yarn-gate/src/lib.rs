@@ -14,6 +14,7 @@ pub mod check;
 pub mod conformance;
 pub mod gpucheck;
 pub mod metrics;
+pub mod pareto;
 pub mod plotdata;
 
 use yarn_model::BackendError;

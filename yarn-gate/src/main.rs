@@ -10,6 +10,7 @@ use yarn_gate::GateError;
 use yarn_gate::bench::{BenchConfig, bench, table};
 use yarn_gate::check::{CheckConfig, CheckReport, run_check};
 use yarn_gate::gpucheck::run_gpucheck;
+use yarn_gate::pareto;
 use yarn_gate::plotdata as plot;
 use yarn_model::{Backend, Params, widen};
 use yarn_render::{Renderer, View, tube_obj};
@@ -40,6 +41,39 @@ enum Command {
     /// Measure the data behind the paper's figures 2-4 and write a CSV and
     /// a PNG plot for each.
     Plotdata(PlotdataArgs),
+    /// Run time against error: every configuration (backend x substep) on
+    /// four reference problems against a Serial f64 reference at h/8, with
+    /// each problem's Pareto front and a recommended configuration (writes
+    /// pareto.csv and pareto.png).
+    Pareto(ParetoArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct ParetoArgs {
+    /// Backends, comma-separated; GPU ones are left out, with a warning,
+    /// when there is no adapter.
+    #[arg(long, value_delimiter = ',', default_value = "serial-f64,serial-f32,rayon,wgpu,wgpu-fixed")]
+    backend: Vec<String>,
+    /// Patch size in stitches, WIDTHxHEIGHT.
+    #[arg(long, default_value = "16x16", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Simulated seconds per problem.
+    #[arg(long, default_value_t = 1.0)]
+    duration: f64,
+    /// Substeps per 1/150 s control tick to try, comma-separated: h =
+    /// 1/(150 N) s, so 10 is the paper's 1/1500.
+    #[arg(long, value_delimiter = ',', default_value = "2,3,5,10,20,40")]
+    substeps: Vec<u32>,
+    /// Timed runs per configuration; the median wall time is reported.
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
+    /// Folder for pareto.csv and pareto.png (created if missing).
+    #[arg(long, default_value = "pareto")]
+    out: std::path::PathBuf,
+    /// Print one JSON object (rows, recommended, reference_self_error)
+    /// instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -127,6 +161,10 @@ struct BenchArgs {
     /// Hold each patch's top row in place, as a drape does.
     #[arg(long)]
     pin_top: bool,
+    /// Fraction of the contacts to release first, the top rows' (as after
+    /// unravelling).
+    #[arg(long, default_value_t = 0.0)]
+    dead: f64,
     /// Print a JSON array of rows instead of the table.
     #[arg(long)]
     json: bool,
@@ -235,6 +273,7 @@ fn run_bench(args: &BenchArgs) -> Result<Vec<yarn_gate::bench::BenchRow>, GateEr
         repeats: args.repeats.max(1),
         params,
         pin_top: args.pin_top,
+        dead: args.dead,
         ..BenchConfig::default()
     };
     let mut rows = Vec::new();
@@ -253,6 +292,100 @@ fn run_bench(args: &BenchArgs) -> Result<Vec<yarn_gate::bench::BenchRow>, GateEr
         rows.extend(measured?);
     }
     Ok(rows)
+}
+
+/// What `pareto` reports.
+#[derive(Debug, serde::Serialize)]
+struct ParetoReport {
+    rows: Vec<pareto::ParetoRow>,
+    recommended: Option<String>,
+    /// Per problem, the largest position difference, in yarn radii,
+    /// between the reference and the same run at half its substep.
+    reference_self_error: std::collections::BTreeMap<&'static str, f64>,
+    written: Vec<String>,
+}
+
+fn pareto(args: &ParetoArgs) -> Result<ParetoReport, GateError> {
+    use pareto::{Problem, REFERENCE_SUBSTEPS, run};
+    const CHECKPOINTS: u32 = 4;
+    let ticks = (args.duration / pareto::CONTROL).round().max(1.0) as u32;
+    let radius = Geometry::default().yarn_radius;
+    let repeats = args.repeats.max(1);
+    let total = (Problem::ALL.len() * (2 + args.backend.len() * args.substeps.len() * repeats)) as u64;
+    let bar = progress_bar(total, "{msg:>24} [{bar:40}] {pos}/{len} runs ({eta})");
+    let mut references = Vec::new();
+    let mut reference_self_error = std::collections::BTreeMap::new();
+    for problem in Problem::ALL {
+        bar.set_message(format!("reference {}", problem.name()));
+        let [coarse, fine] =
+            REFERENCE_SUBSTEPS.map(|n| run(&mut Serial::<f64>::new(), problem, args.size, ticks, n, CHECKPOINTS));
+        let (coarse, fine) = (coarse?, fine?);
+        bar.inc(2);
+        reference_self_error.insert(problem.name(), pareto::errors(&coarse, &fine, radius).0);
+        references.push(coarse);
+    }
+    let mut rows = Vec::new();
+    for name in &args.backend {
+        let measured = with_backend!(name.as_str(), 0, backend => {
+            let mut backend = backend;
+            let mut rows = Vec::new();
+            for &n in &args.substeps {
+                let h = pareto::CONTROL / f64::from(n.max(1));
+                for (problem, reference) in Problem::ALL.into_iter().zip(&references) {
+                    bar.set_message(format!("{name} {}", problem.name()));
+                    let mut walls = Vec::new();
+                    let mut last = None;
+                    for _ in 0..repeats {
+                        let outcome = match run(&mut backend, problem, args.size, ticks, n.max(1), CHECKPOINTS) {
+                            Ok(r) => r,
+                            // An h the parameters refuse: a failed configuration.
+                            Err(GateError::Backend(e)) => pareto::Run {
+                                checkpoints: Vec::new(), energies: Vec::new(), wall_s: f64::INFINITY,
+                                failure: Some(e.to_string()),
+                            },
+                            Err(e) => return Err(e),
+                        };
+                        walls.push(outcome.wall_s);
+                        last = Some(outcome);
+                        bar.inc(1);
+                    }
+                    walls.sort_by(f64::total_cmp);
+                    let outcome = last.expect("at least one repeat");
+                    let (pos_err_max, pos_err_rms, energy_err) = pareto::errors(&outcome, reference, radius);
+                    let failure = outcome.failure.or_else(|| {
+                        (!pos_err_max.is_finite()).then(|| format!("diverged: beyond {} r", pareto::DIVERGED))
+                    });
+                    rows.push(pareto::ParetoRow {
+                        problem,
+                        config: pareto::config_name(name, h),
+                        backend: name.clone(),
+                        h,
+                        wall_s_per_sim_s: walls[walls.len() / 2] / (pareto::CONTROL * f64::from(ticks)),
+                        pos_err_max,
+                        pos_err_rms,
+                        energy_err,
+                        on_front: false,
+                        recommended: false,
+                        failure,
+                    });
+                }
+            }
+            Ok::<_, GateError>(rows)
+        });
+        match measured {
+            Ok(measured) => rows.extend(measured),
+            Err(GateError::Gpu(e)) => {
+                bar.suspend(|| eprintln!("warning: {name} left out: {e}"));
+                bar.inc((Problem::ALL.len() * args.substeps.len() * repeats) as u64);
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    bar.finish_and_clear();
+    pareto::mark_front(&mut rows);
+    let recommended = pareto::recommend(&mut rows);
+    let written = pareto::write(&args.out, &rows)?.iter().map(|p| p.display().to_string()).collect();
+    Ok(ParetoReport { rows, recommended, reference_self_error, written })
 }
 
 /// Measure and write the three figures; returns the files written.
@@ -350,6 +483,35 @@ fn relax<B: Backend>(
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Pareto(args) => match pareto(&args) {
+            Ok(report) => {
+                if args.json {
+                    println!("{}", serde_json::to_string_pretty(&report).expect("the report serialises"));
+                } else {
+                    print!("{}", pareto::table(&report.rows));
+                    let self_error: Vec<String> =
+                        report.reference_self_error.iter().map(|(p, e)| format!("{p} {e:.1e}")).collect();
+                    println!(
+                        "reference: serial-f64 at h=1/{:.0}; against h=1/{:.0} it differs by at most (r): {}",
+                        150.0 * f64::from(pareto::REFERENCE_SUBSTEPS[0]),
+                        150.0 * f64::from(pareto::REFERENCE_SUBSTEPS[1]),
+                        self_error.join(", ")
+                    );
+                    match &report.recommended {
+                        Some(c) => println!("recommended (fastest within {} r everywhere): {c}", pareto::ACCURACY),
+                        None => println!("no configuration is within {} r on every problem", pareto::ACCURACY),
+                    }
+                    for path in &report.written {
+                        println!("wrote {path}");
+                    }
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::from(2)
+            }
+        },
         Command::Plotdata(args) => match plotdata(&args) {
             Ok(written) => {
                 for path in written {

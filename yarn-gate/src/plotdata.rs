@@ -26,9 +26,9 @@ use crate::metrics::{self, Axis, Relaxation, Stiffness};
 pub const STRAINS: [f64; 4] = [0.025, 0.05, 0.075, 0.1];
 
 /// The font family name the plots use.
-const FONT: &str = "yarnify-sans";
+pub(crate) const FONT: &str = "yarnify-sans";
 
-fn register_font() {
+pub(crate) fn register_font() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
         // The embedded font is a valid TrueType file; if it were not, the
@@ -37,11 +37,11 @@ fn register_font() {
     });
 }
 
-fn io(path: &Path, e: impl std::fmt::Display) -> GateError {
+pub(crate) fn io(path: &Path, e: impl std::fmt::Display) -> GateError {
     GateError::Io { path: path.display().to_string(), reason: e.to_string() }
 }
 
-fn plot_error(path: &Path, e: impl std::fmt::Display) -> GateError {
+pub(crate) fn plot_error(path: &Path, e: impl std::fmt::Display) -> GateError {
     GateError::Render(format!("could not draw {}: {e}", path.display()))
 }
 
@@ -338,6 +338,7 @@ mod tests {
             friction: 0.3,
             gravity: 0.0,
             pins: 0,
+            dead_contacts: 0,
             ns_per_node_substep: 1e9 / per_s / nodes as f64,
             ns_min: 0.0,
             ns_max: 0.0,

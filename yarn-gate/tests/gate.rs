@@ -207,3 +207,45 @@ fn cli_plotdata_writes_three_figures() {
     assert_eq!(lines("fig4_scaling.csv"), 9);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn cli_pareto_reports_every_configuration_and_a_recommendation_on_the_front() {
+    let dir = std::env::temp_dir().join(format!("yarnify-pareto-{}", std::process::id()));
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
+        .args(["pareto", "--size", "4x4", "--duration", "0.1", "--substeps", "5,10,40", "--repeats", "1"])
+        .args(["--backend", "serial-f32,serial-f64", "--json", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    let rows = report["rows"].as_array().unwrap();
+    // 2 backends x 3 substeps x 4 problems.
+    assert_eq!(rows.len(), 24);
+    for row in rows {
+        for key in ["problem", "config", "wall_s_per_sim_s", "pos_err_max", "pos_err_rms", "energy_err", "on_front"] {
+            assert!(row.get(key).is_some(), "{key} missing from {row}");
+        }
+    }
+    // Finer substeps are more accurate, problem by problem.
+    let error = |problem: &str, config: &str| {
+        rows.iter().find(|r| r["problem"] == problem && r["config"] == config).unwrap()["pos_err_max"].as_f64().unwrap()
+    };
+    for problem in ["relax", "pull", "snag", "drape"] {
+        assert!(error(problem, "serial-f64 h=1/6000") < error(problem, "serial-f64 h=1/750"), "{problem}");
+    }
+    // The reference agrees with itself at half the substep far better than
+    // any configuration agrees with it.
+    for row in rows {
+        let self_error = report["reference_self_error"][row["problem"].as_str().unwrap()].as_f64().unwrap();
+        assert!(row["pos_err_max"].as_f64().unwrap() > self_error, "{row} vs the reference's {self_error}");
+    }
+    let recommended = report["recommended"].as_str().unwrap();
+    let marked: Vec<_> = rows.iter().filter(|r| r["recommended"] == true).collect();
+    assert_eq!(marked.len(), 4);
+    assert!(marked.iter().all(|r| r["config"] == recommended && r["on_front"] == true));
+    let png = std::fs::read(dir.join("pareto.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    assert_eq!(std::fs::read_to_string(dir.join("pareto.csv")).unwrap().lines().count(), 25);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

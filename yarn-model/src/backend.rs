@@ -55,6 +55,24 @@ pub enum BackendError {
         /// The largest force the fixed-point scale can hold.
         max_force: f64,
     },
+    /// The simulation blew up: a node's position or velocity turned
+    /// non-finite, or its speed passed [`crate::Model::divergence_speed`].
+    /// The state is as it was before the failing call.
+    #[error(
+        "the simulation diverged at substep {substep}: node {node} reached speed {speed:e} (the limit is {limit:e}); \
+         the state is as before this call: lower the substep, the stiffnesses or the applied pull"
+    )]
+    Diverged {
+        /// The substep (counted since load) whose result was bad; a GPU
+        /// names the last substep of the failing call.
+        substep: u64,
+        /// The first bad node.
+        node: usize,
+        /// Its speed (NaN if its state was not finite).
+        speed: f64,
+        /// The speed limit it passed.
+        limit: f64,
+    },
     /// The compute device reported an error or was lost.
     #[error("compute device error: {0}")]
     Device(String),

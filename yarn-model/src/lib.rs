@@ -36,7 +36,7 @@ pub mod step;
 pub mod terms;
 
 pub use backend::{Backend, BackendError};
-pub use model::{Coefficients, ContactRest, Model, State};
+pub use model::{Coefficients, ContactRest, DIVERGENCE_REACH, Model, State};
 pub use params::{ParamError, Params};
 pub use real::{Real, V3, widen};
 pub use simulation::Simulation;

@@ -67,6 +67,10 @@ pub struct ContactRest<T> {
     pub rest: T,
 }
 
+/// How far, in mean segment lengths, a node may travel in one substep
+/// before it counts as diverged ([`Model::divergence_speed`]).
+pub const DIVERGENCE_REACH: f64 = 10.0;
+
 /// A fabric's element tables and rest values in precision `T`, with the
 /// current parameters, pins and contact liveness.
 #[derive(Debug, Clone, PartialEq)]
@@ -119,6 +123,16 @@ impl<T: Real> Model<T> {
         self.nodes
     }
 
+    /// The speed beyond which a node has diverged: one that would cross
+    /// [`DIVERGENCE_REACH`] mean segment lengths in a single substep. No
+    /// physical motion of the yarn comes near it; an explicit step that
+    /// produces it has blown up.
+    pub fn divergence_speed(&self) -> f64 {
+        let n = self.spring_rest.len().max(1) as f64;
+        let mean_rest = self.spring_rest.iter().map(|r| r.to_f64()).sum::<f64>() / n;
+        DIVERGENCE_REACH * mean_rest.max(f64::MIN_POSITIVE) / self.params.substep
+    }
+
     /// The parameters in force.
     pub fn params(&self) -> &Params {
         &self.params
@@ -146,13 +160,15 @@ impl<T: Real> Model<T> {
         Ok(())
     }
 
-    /// Each node's contacts, for backends that gather per node: the
+    /// Each node's alive contacts, for backends that gather per node: the
     /// contacts of node i are `entries[start[i]..start[i + 1]]`, each a
-    /// (node, contact index) pair, in contact order. `start` has one more
-    /// entry than there are nodes.
+    /// (node, contact index) pair, in contact order. Dead contacts are left
+    /// out, so a released contact costs nothing. `start` has one more entry
+    /// than there are nodes.
     pub fn incidence(&self) -> (Vec<u32>, Vec<(u32, u32)>) {
+        let live = || self.contacts.iter().enumerate().filter(|&(k, _)| self.alive[k]);
         let mut start = vec![0u32; self.nodes + 1];
-        for c in &self.contacts {
+        for (_, c) in live() {
             start[c.a as usize + 1] += 1;
             start[c.b as usize + 1] += 1;
         }
@@ -160,8 +176,8 @@ impl<T: Real> Model<T> {
             start[i + 1] += start[i];
         }
         let mut fill = start.clone();
-        let mut entries = vec![(0, 0); self.contacts.len() * 2];
-        for (k, c) in self.contacts.iter().enumerate() {
+        let mut entries = vec![(0, 0); start[self.nodes] as usize];
+        for (k, c) in live() {
             for node in [c.a, c.b] {
                 entries[fill[node as usize] as usize] = (node, k as u32);
                 fill[node as usize] += 1;
@@ -221,6 +237,19 @@ impl<T: Real> State<T> {
     /// The largest node speed.
     pub fn max_speed(&self) -> f64 {
         self.velocities.iter().map(|v| v.norm().to_f64()).fold(0.0, f64::max)
+    }
+
+    /// The first node whose position or velocity is not finite, or whose
+    /// speed exceeds `limit`, with its speed (NaN or infinite for a
+    /// non-finite one); `None` if every node is fine.
+    pub fn first_diverged(&self, limit: f64) -> Option<(usize, f64)> {
+        self.positions.iter().zip(&self.velocities).enumerate().find_map(|(i, (x, v))| {
+            let speed = v.norm().to_f64();
+            let finite = x.iter().all(|c| c.to_f64().is_finite());
+            // A NaN speed fails the comparison, so it is not `within`.
+            let within = speed <= limit;
+            (!finite || !within).then_some((i, if finite { speed } else { f64::NAN }))
+        })
     }
 
     /// Check that this state fits a model of `nodes` nodes.

@@ -1,0 +1,532 @@
+//! `yarn-gate pareto`: run time against error. Four reference problems are
+//! each solved by `Serial<f64>` at a small substep (the reference) and by
+//! every configuration (backend × precision × substep h × accumulation
+//! mode); each configuration's wall time per simulated second is set
+//! against its position and energy error from the reference at matched
+//! simulated times, and the Pareto front of the two is marked.
+//!
+//! Every problem is driven on a fixed control clock ([`CONTROL`]): pins
+//! move, and states are compared, only at control ticks, so every substep
+//! h = CONTROL / n meets them exactly.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use nalgebra::Vector3;
+use plotters::prelude::*;
+use serde::Serialize;
+use yarn_model::{Backend, Model, Params, State, step};
+use yarn_topology::{Chart, Fabric, Geometry, Pin, Side};
+
+use crate::GateError;
+
+/// The control interval in simulated seconds: pins move and states are
+/// compared on this clock. The paper's h = 1/1500 s is 10 substeps a tick.
+pub const CONTROL: f64 = 1.0 / 150.0;
+
+/// Substeps per control tick of the configurations measured: h = 1/300 s
+/// to 1/6000 s.
+pub const SUBSTEPS_PER_TICK: [u32; 6] = [2, 3, 5, 10, 20, 40];
+
+/// Substeps per tick of the reference (h = 1/24000 s, the paper's h / 16),
+/// and of the run at half its substep that it is checked against.
+pub const REFERENCE_SUBSTEPS: [u32; 2] = [160, 320];
+
+/// A position error above this many yarn radii counts as inaccurate when
+/// choosing the recommended configuration.
+pub const ACCURACY: f64 = 0.1;
+
+/// A run this many yarn radii or more from the reference has diverged: it
+/// counts as failed.
+pub const DIVERGED: f64 = 1e3;
+
+/// The reference problems.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Problem {
+    /// The patch released from its assembled shape, free.
+    Relax,
+    /// The left and right columns gripped and pulled 10 % apart along the
+    /// course over the first half, then held.
+    Pull,
+    /// The head of the centre stitch grabbed and drawn out of the fabric by
+    /// 3 stitch widths over the first half, then held.
+    Snag,
+    /// The top row held and the patch left to hang under gravity.
+    Drape,
+}
+
+impl Problem {
+    /// Every problem, in report order.
+    pub const ALL: [Problem; 4] = [Problem::Relax, Problem::Pull, Problem::Snag, Problem::Drape];
+
+    /// Its name in tables and file names.
+    pub fn name(self) -> &'static str {
+        match self {
+            Problem::Relax => "relax",
+            Problem::Pull => "pull",
+            Problem::Snag => "snag",
+            Problem::Drape => "drape",
+        }
+    }
+
+    /// Its parameters at substep `h`.
+    fn params(self, h: f64) -> Params {
+        let gravity = if self == Problem::Drape { 9.81 } else { 0.0 };
+        Params { substep: h, gravity, ..Params::gate() }
+    }
+
+    /// The pins at simulated time `t` of a run lasting `duration`.
+    fn pins(self, fabric: &Fabric, t: f64, duration: f64) -> Vec<Pin> {
+        let rest = fabric.positions();
+        let ramp = (2.0 * t / duration).min(1.0);
+        let held = |side| fabric.side_nodes(side).into_iter();
+        match self {
+            Problem::Relax => Vec::new(),
+            Problem::Pull => {
+                let (left, right) = (held(Side::Left), held(Side::Right));
+                let course = fabric.course();
+                let width = right.clone().map(|i| rest[i as usize].dot(&course)).fold(f64::MIN, f64::max)
+                    - left.clone().map(|i| rest[i as usize].dot(&course)).fold(f64::MAX, f64::min);
+                let pull = course * (0.1 * width * ramp);
+                left.map(|node| Pin { node, target: rest[node as usize] })
+                    .chain(right.map(|node| Pin { node, target: rest[node as usize] + pull }))
+                    .collect()
+            }
+            Problem::Snag => {
+                let Some((w, h)) = fabric.grid() else { return Vec::new() };
+                let Some(node) = fabric.stitch_node(w / 2, h / 2, yarn_topology::SEG / 2) else { return Vec::new() };
+                let out = fabric.course().cross(&fabric.wale());
+                let reach = 3.0 * Geometry::default().stitch_width * ramp;
+                vec![Pin { node: node as u32, target: rest[node] + out * reach }]
+            }
+            Problem::Drape => held(Side::Top).map(|node| Pin { node, target: rest[node as usize] }).collect(),
+        }
+    }
+}
+
+/// What was measured of one run of one problem: the states and energies at
+/// each checkpoint, and the wall time spent advancing.
+#[derive(Debug, Clone)]
+pub struct Run {
+    /// Positions at each checkpoint, in f64.
+    pub checkpoints: Vec<Vec<Vector3<f64>>>,
+    /// Total energy at each checkpoint.
+    pub energies: Vec<f64>,
+    /// Wall seconds spent in `advance` and in setting pins.
+    pub wall_s: f64,
+    /// The run stopped early: a non-finite state or a backend error.
+    pub failure: Option<String>,
+}
+
+/// Run `problem` on a `size` patch for `ticks` control ticks at `per_tick`
+/// substeps a tick, reading the state at `checkpoints` evenly spaced ticks.
+///
+/// # Errors
+/// The patch cannot be built or the parameters are refused (an h above the
+/// stability bound).
+pub fn run<B: Backend>(
+    backend: &mut B,
+    problem: Problem,
+    size: (usize, usize),
+    ticks: u32,
+    per_tick: u32,
+    checkpoints: u32,
+) -> Result<Run, GateError> {
+    let fabric = Fabric::from_chart(&Chart::stockinette(size.0, size.1)?, &Geometry::default())?;
+    let params = problem.params(CONTROL / f64::from(per_tick));
+    let scene = Model::<f64>::new(&fabric, &params)?;
+    backend.load(&fabric, &params)?;
+    let duration = CONTROL * f64::from(ticks);
+    let mut out = Run { checkpoints: Vec::new(), energies: Vec::new(), wall_s: 0.0, failure: None };
+    let every = (ticks / checkpoints.max(1)).max(1);
+    for tick in 0..ticks {
+        let start = Instant::now();
+        let advanced = backend
+            .set_pins(&problem.pins(&fabric, CONTROL * f64::from(tick), duration))
+            .and_then(|()| backend.advance(u64::from(per_tick)));
+        out.wall_s += start.elapsed().as_secs_f64();
+        if let Err(e) = advanced {
+            out.failure = Some(e.to_string());
+            break;
+        }
+        if (tick + 1) % every == 0 {
+            let state: State<f64> = backend.state()?.cast();
+            if state.positions.iter().chain(&state.velocities).any(|p| !p.iter().all(|c| c.is_finite())) {
+                out.failure = Some(format!("the state is not finite at tick {}", tick + 1));
+                break;
+            }
+            out.energies.push(step::energy(&scene, &state).total());
+            out.checkpoints.push(state.positions);
+        }
+    }
+    Ok(out)
+}
+
+/// How far `run` is from `reference`, in yarn radii, over their common
+/// checkpoints: the largest and the root-mean-square node distance, and
+/// the largest energy difference relative to the reference's energy at
+/// that checkpoint. All infinite for a run that failed or diverged
+/// ([`DIVERGED`]).
+pub fn errors(run: &Run, reference: &Run, radius: f64) -> (f64, f64, f64) {
+    if run.failure.is_some() || run.checkpoints.len() < reference.checkpoints.len() {
+        return (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    }
+    let (mut max, mut sum, mut count, mut energy) = (0.0f64, 0.0, 0usize, 0.0f64);
+    for (k, (mine, theirs)) in run.checkpoints.iter().zip(&reference.checkpoints).enumerate() {
+        for (p, q) in mine.iter().zip(theirs) {
+            let d = (p - q).norm() / radius;
+            max = max.max(d);
+            sum += d * d;
+            count += 1;
+        }
+        energy = energy.max((run.energies[k] - reference.energies[k]).abs() / reference.energies[k].abs().max(1e-300));
+    }
+    if max >= DIVERGED {
+        return (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    }
+    (max, (sum / count.max(1) as f64).sqrt(), energy)
+}
+
+/// One configuration's result on one problem.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParetoRow {
+    /// The problem.
+    pub problem: Problem,
+    /// `backend h=1/N`, e.g. `serial-f32 h=1/1500`.
+    pub config: String,
+    /// The backend (precision and accumulation mode are in its name).
+    pub backend: String,
+    /// The substep h in seconds.
+    pub h: f64,
+    /// Wall seconds per simulated second (median over the repeats).
+    pub wall_s_per_sim_s: f64,
+    /// Largest node distance from the reference over the checkpoints, in
+    /// yarn radii.
+    pub pos_err_max: f64,
+    /// Root-mean-square node distance from the reference, in yarn radii.
+    pub pos_err_rms: f64,
+    /// Largest relative energy difference from the reference.
+    pub energy_err: f64,
+    /// No configuration is both faster and more accurate (by
+    /// `pos_err_max`).
+    pub on_front: bool,
+    /// The recommended configuration ([`recommend`]).
+    pub recommended: bool,
+    /// Why the run stopped early, if it did.
+    pub failure: Option<String>,
+}
+
+/// The configuration label of `backend` at `h`.
+pub fn config_name(backend: &str, h: f64) -> String {
+    format!("{backend} h=1/{:.0}", 1.0 / h)
+}
+
+/// How much faster a configuration must be (as a fraction of wall time)
+/// to beat another of no worse accuracy: differences smaller than this are
+/// within the run-to-run noise of a shared machine and count as ties.
+pub const WALL_MARGIN: f64 = 0.10;
+
+/// How much more accurate (as a fraction of `pos_err_max`) a configuration
+/// must be to beat another that is no slower, beyond the wall margin.
+pub const ERROR_MARGIN: f64 = 0.05;
+
+/// Whether `o` beats `r`: clearly faster and no less accurate (within the
+/// error margin), or clearly more accurate and no slower (within the wall
+/// margin). Ties within both margins beat neither.
+fn beats(o: &ParetoRow, r: &ParetoRow) -> bool {
+    let faster = o.wall_s_per_sim_s <= r.wall_s_per_sim_s * (1.0 - WALL_MARGIN);
+    let no_slower = o.wall_s_per_sim_s <= r.wall_s_per_sim_s * (1.0 + WALL_MARGIN);
+    let more_accurate = o.pos_err_max <= r.pos_err_max * (1.0 - ERROR_MARGIN);
+    let no_less_accurate = o.pos_err_max <= r.pos_err_max * (1.0 + ERROR_MARGIN);
+    o.pos_err_max.is_finite() && ((faster && no_less_accurate) || (more_accurate && no_slower))
+}
+
+/// Mark each row that no other row of the same problem beats: none is
+/// faster by [`WALL_MARGIN`] at no worse accuracy, or more accurate by
+/// [`ERROR_MARGIN`] at no greater cost. Failed runs are never on the front.
+pub fn mark_front(rows: &mut [ParetoRow]) {
+    let beaten: Vec<bool> = rows
+        .iter()
+        .map(|r| !r.pos_err_max.is_finite() || rows.iter().any(|o| o.problem == r.problem && beats(o, r)))
+        .collect();
+    for (row, beaten) in rows.iter_mut().zip(beaten) {
+        row.on_front = !beaten;
+    }
+}
+
+/// The recommended configuration: of those within [`ACCURACY`] on every
+/// problem, the one with the least total wall time. Marks its rows and
+/// returns its name, or `None` if no configuration is accurate everywhere.
+/// Being the fastest accurate one on each problem's sum, it is on every
+/// problem's front unless another configuration is both faster and more
+/// accurate there, which the report then shows.
+pub fn recommend(rows: &mut [ParetoRow]) -> Option<String> {
+    let mut configs: Vec<&str> = rows.iter().map(|r| r.config.as_str()).collect();
+    configs.sort_unstable();
+    configs.dedup();
+    let best = configs
+        .into_iter()
+        .filter(|c| rows.iter().filter(|r| r.config == *c).all(|r| r.pos_err_max <= ACCURACY))
+        .map(|c| (c, rows.iter().filter(|r| r.config == c).map(|r| r.wall_s_per_sim_s).sum::<f64>()))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(c, _)| c.to_owned())?;
+    for row in rows.iter_mut() {
+        row.recommended = row.config == best;
+    }
+    Some(best)
+}
+
+/// The rows as a table, one block per problem, fastest first.
+pub fn table(rows: &[ParetoRow]) -> String {
+    let mut out = String::new();
+    for problem in Problem::ALL {
+        let mut mine: Vec<&ParetoRow> = rows.iter().filter(|r| r.problem == problem).collect();
+        if mine.is_empty() {
+            continue;
+        }
+        mine.sort_by(|a, b| a.wall_s_per_sim_s.total_cmp(&b.wall_s_per_sim_s));
+        let _ = writeln!(
+            out,
+            "{:<6} {:<28} {:>12} {:>12} {:>12} {:>11}  front",
+            problem.name(),
+            "config",
+            "wall s/sim s",
+            "pos err max",
+            "pos err rms",
+            "energy err"
+        );
+        for r in mine {
+            let mark = match (r.on_front, r.recommended) {
+                (true, true) => "yes  <- recommended",
+                (false, true) => "no   <- recommended",
+                (true, false) => "yes",
+                (false, false) => "",
+            };
+            let _ = writeln!(
+                out,
+                "{:<6} {:<28} {:>12.4} {:>12.3e} {:>12.3e} {:>11.2e}  {mark}{}",
+                "",
+                r.config,
+                r.wall_s_per_sim_s,
+                r.pos_err_max,
+                r.pos_err_rms,
+                r.energy_err,
+                r.failure.as_deref().map(|f| format!(" (failed: {f})")).unwrap_or_default()
+            );
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// Write `pareto.csv` and `pareto.png` (one panel per problem: wall time
+/// against position error, log-log, each backend in its own colour, the
+/// front joined, the recommended configuration ringed) into `dir`.
+///
+/// # Errors
+/// When a file cannot be written or the plot cannot be drawn.
+pub fn write(dir: &Path, rows: &[ParetoRow]) -> Result<[PathBuf; 2], GateError> {
+    std::fs::create_dir_all(dir).map_err(|e| crate::plotdata::io(dir, e))?;
+    let csv_path = dir.join("pareto.csv");
+    let mut csv = String::from(
+        "problem,config,backend,h,wall_s_per_sim_s,pos_err_max,pos_err_rms,energy_err,on_front,recommended\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{},{},{},{},{},{}",
+            r.problem.name(),
+            r.config,
+            r.backend,
+            r.h,
+            r.wall_s_per_sim_s,
+            r.pos_err_max,
+            r.pos_err_rms,
+            r.energy_err,
+            r.on_front,
+            r.recommended
+        );
+    }
+    std::fs::write(&csv_path, csv).map_err(|e| crate::plotdata::io(&csv_path, e))?;
+    let png_path = dir.join("pareto.png");
+    plot(&png_path, rows)?;
+    Ok([csv_path, png_path])
+}
+
+fn plot(path: &Path, rows: &[ParetoRow]) -> Result<(), GateError> {
+    crate::plotdata::register_font();
+    let font = crate::plotdata::FONT;
+    let fail = |e: &dyn std::fmt::Display| crate::plotdata::plot_error(path, e);
+    let root = BitMapBackend::new(path, (1280, 960)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let mut backends: Vec<&str> = rows.iter().map(|r| r.backend.as_str()).collect();
+    backends.sort_unstable();
+    backends.dedup();
+    let colour = |backend: &str| Palette99::pick(backends.iter().position(|b| *b == backend).unwrap_or(0)).to_rgba();
+    for (panel, problem) in root.split_evenly((2, 2)).iter().zip(Problem::ALL) {
+        let mine: Vec<&ParetoRow> =
+            rows.iter().filter(|r| r.problem == problem && r.pos_err_max.is_finite() && r.pos_err_max > 0.0).collect();
+        if mine.is_empty() {
+            continue;
+        }
+        let span = |f: &dyn Fn(&ParetoRow) -> f64| {
+            let (lo, hi) = mine.iter().map(|r| f(r)).fold((f64::MAX, f64::MIN), |(l, h), v| (l.min(v), h.max(v)));
+            (lo / 1.5)..(hi * 1.5)
+        };
+        let mut chart = ChartBuilder::on(panel)
+            .caption(format!("{}: wall time against error", problem.name()), (font, 22))
+            .margin(12)
+            .x_label_area_size(44)
+            .y_label_area_size(72)
+            .build_cartesian_2d(span(&|r| r.wall_s_per_sim_s).log_scale(), span(&|r| r.pos_err_max).log_scale())
+            .map_err(|e| fail(&e))?;
+        chart
+            .configure_mesh()
+            .x_labels(8)
+            .y_labels(8)
+            .x_label_formatter(&|v| format!("{v:.2e}"))
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .x_desc("wall s per simulated s")
+            .y_desc("max position error (r)")
+            .label_style((font, 13))
+            .axis_desc_style((font, 15))
+            .draw()
+            .map_err(|e| fail(&e))?;
+        let mut front: Vec<(f64, f64)> =
+            mine.iter().filter(|r| r.on_front).map(|r| (r.wall_s_per_sim_s, r.pos_err_max)).collect();
+        front.sort_by(|a, b| a.0.total_cmp(&b.0));
+        chart.draw_series(LineSeries::new(front, BLACK.mix(0.5).stroke_width(2))).map_err(|e| fail(&e))?;
+        for backend in &backends {
+            let c = colour(backend);
+            chart
+                .draw_series(
+                    mine.iter()
+                        .filter(|r| r.backend == *backend)
+                        .map(|r| Circle::new((r.wall_s_per_sim_s, r.pos_err_max), 5, c.filled())),
+                )
+                .map_err(|e| fail(&e))?
+                .label(*backend)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 5, c.filled()));
+        }
+        chart
+            .draw_series(
+                mine.iter()
+                    .filter(|r| r.recommended)
+                    .map(|r| Circle::new((r.wall_s_per_sim_s, r.pos_err_max), 11, BLACK.stroke_width(2))),
+            )
+            .map_err(|e| fail(&e))?
+            .label("recommended")
+            .legend(|(x, y)| Circle::new((x + 10, y), 7, BLACK.stroke_width(2)));
+        chart
+            .configure_series_labels()
+            .label_font((font, 13))
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::LowerLeft)
+            .draw()
+            .map_err(|e| fail(&e))?;
+    }
+    root.present().map_err(|e| fail(&e))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(problem: Problem, config: &str, wall: f64, err: f64) -> ParetoRow {
+        ParetoRow {
+            problem,
+            config: config.into(),
+            backend: config.split(' ').next().unwrap_or_default().into(),
+            h: 1.0 / 1500.0,
+            wall_s_per_sim_s: wall,
+            pos_err_max: err,
+            pos_err_rms: err / 2.0,
+            energy_err: 0.0,
+            on_front: false,
+            recommended: false,
+            failure: None,
+        }
+    }
+
+    #[test]
+    fn the_front_keeps_only_the_unbeaten_and_the_recommendation_is_the_fastest_accurate() {
+        let mut rows = vec![
+            row(Problem::Relax, "a h=1", 1.0, 0.5),
+            row(Problem::Relax, "b h=1", 2.0, 0.05),
+            row(Problem::Relax, "c h=1", 3.0, 0.06),
+            row(Problem::Relax, "d h=1", 4.0, 0.001),
+            row(Problem::Relax, "e h=1", 0.5, f64::INFINITY),
+            // A tie with b within the margins: both stay.
+            row(Problem::Relax, "f h=1", 2.1, 0.049),
+            // Barely more accurate than d, but slower: d stays, g goes.
+            row(Problem::Relax, "g h=1", 5.0, 0.00099),
+            row(Problem::Pull, "a h=1", 1.0, 0.01),
+            row(Problem::Pull, "b h=1", 2.0, 0.02),
+            row(Problem::Pull, "c h=1", 3.0, 0.02),
+            row(Problem::Pull, "d h=1", 4.0, 0.01),
+            row(Problem::Pull, "e h=1", 0.5, f64::INFINITY),
+            row(Problem::Pull, "f h=1", 2.1, 0.049),
+            row(Problem::Pull, "g h=1", 5.0, 0.00099),
+        ];
+        mark_front(&mut rows);
+        let front: Vec<(&str, &str)> =
+            rows.iter().filter(|r| r.on_front).map(|r| (r.problem.name(), r.config.as_str())).collect();
+        assert_eq!(
+            front,
+            [
+                ("relax", "a h=1"),
+                ("relax", "b h=1"),
+                ("relax", "d h=1"),
+                ("relax", "f h=1"),
+                ("pull", "a h=1"),
+                ("pull", "g h=1")
+            ]
+        );
+        // a is inaccurate on relax, e failed: b is the fastest accurate
+        // everywhere (f, as accurate, is slower in total).
+        assert_eq!(recommend(&mut rows).as_deref(), Some("b h=1"));
+        assert!(rows.iter().filter(|r| r.recommended).all(|r| r.config == "b h=1"));
+        assert_eq!(rows.iter().filter(|r| r.recommended).count(), 2);
+        assert!(table(&rows).contains("<- recommended"));
+    }
+
+    #[test]
+    fn errors_are_measured_in_radii_and_a_failed_run_is_infinitely_wrong() {
+        let at = |x: f64| Run {
+            checkpoints: vec![vec![Vector3::new(x, 0.0, 0.0), Vector3::zeros()]],
+            energies: vec![2.0 + x],
+            wall_s: 1.0,
+            failure: None,
+        };
+        let (max, rms, energy) = errors(&at(0.5), &at(0.0), 0.5);
+        assert_eq!((max, rms), (1.0, (0.5f64).sqrt()));
+        assert!((energy - 0.25).abs() < 1e-12);
+        let failed = Run { failure: Some("diverged".into()), ..at(0.0) };
+        assert_eq!(errors(&failed, &at(0.0), 0.5).0, f64::INFINITY);
+        assert_eq!(errors(&at(DIVERGED), &at(0.0), 1.0).0, f64::INFINITY, "diverged");
+    }
+
+    #[test]
+    fn each_problem_drives_its_pins_on_the_control_clock() {
+        let fabric =
+            Fabric::from_chart(&Chart::stockinette(6, 6).expect("size"), &Geometry::default()).expect("fabric");
+        assert!(Problem::Relax.pins(&fabric, 0.5, 1.0).is_empty());
+        let start = Problem::Pull.pins(&fabric, 0.0, 1.0);
+        let half = Problem::Pull.pins(&fabric, 0.5, 1.0);
+        let end = Problem::Pull.pins(&fabric, 1.0, 1.0);
+        assert_eq!(start.len(), 2 * fabric.side_nodes(Side::Left).len());
+        let moved =
+            |pins: &[Pin]| pins.iter().map(|p| (p.target - fabric.positions()[p.node as usize]).norm()).sum::<f64>();
+        assert_eq!(moved(&start), 0.0);
+        assert!(moved(&half) > 0.0 && (moved(&half) - moved(&end)).abs() < 1e-12, "the pull ramps, then holds");
+        let snag = Problem::Snag.pins(&fabric, 1.0, 1.0);
+        assert_eq!(snag.len(), 1);
+        assert!((moved(&snag) - 3.0 * Geometry::default().stitch_width).abs() < 1e-9);
+        assert_eq!(Problem::Drape.pins(&fabric, 0.3, 1.0).len(), fabric.side_nodes(Side::Top).len());
+        assert!(Problem::Drape.params(1e-3).gravity > 0.0 && Problem::Relax.params(1e-3).gravity == 0.0);
+    }
+}
