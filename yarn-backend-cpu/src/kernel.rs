@@ -567,12 +567,14 @@ impl<T: Real> Kernel<T> {
                 for ((v, f), (next_x, x)) in
                     v.components().into_iter().zip(forces).zip(next_x.components().into_iter().zip(x))
                 {
+                    // A NaN fails the comparison, so it is not `within`; the
+                    // loop still vectorises.
+                    let mut within = true;
                     for (v, f) in v.iter_mut().zip(f) {
                         *v = (*v + *f * c.h_over_m) * c.damping_factor;
+                        within &= v.abs() <= limit;
                     }
-                    // A NaN fails the comparison, so it is not `within`; the
-                    // fold vectorises.
-                    if !v.iter().fold(true, |within, v| within & (v.abs() <= limit)) {
+                    if !within {
                         this.diverged.store(true, Ordering::Relaxed);
                     }
                     if !apply_friction {

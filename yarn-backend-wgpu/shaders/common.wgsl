@@ -51,15 +51,9 @@ const FRICTION_ON: u32 = 1u;
 // correction steps below are exact and are taken.
 const FUSED_FMA: u32 = 2u;
 // Bits of `status[0]`, which the host reads and clears after each batch: a
-// fixed-point force or sum overflowed; a velocity diverged.
+// fixed-point force or sum overflowed; the state diverged.
 const OVERFLOWED: u32 = 1u;
 const DIVERGED: u32 = 2u;
-
-// Raise DIVERGED in `status` if `velocity` is not finite or too fast (a
-// NaN fails the comparison). Each pass that declares `status` calls it.
-fn check_speed(velocity: vec3<f32>) -> bool {
-    return all(abs(velocity) <= vec3<f32>(p.max_speed));
-}
 
 // The global thread index of a dispatch that may be two-dimensional (a
 // fabric with more workgroups than one dimension allows).

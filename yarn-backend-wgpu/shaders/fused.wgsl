@@ -13,7 +13,6 @@
 @group(0) @binding(5) var<storage, read> chain: array<vec2<f32>>;
 @group(0) @binding(6) var<storage, read> start: array<u32>;
 @group(0) @binding(7) var<storage, read> incident: array<Contact>;
-@group(0) @binding(8) var<storage, read_write> status: array<atomic<u32>>;
 
 // v* of node j (step 2).
 fn velocity_star(j: u32) -> vec3<f32> {
@@ -41,9 +40,6 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
         }
     }
     let velocity = own + dv;
-    if !check_speed(velocity) {
-        atomicOr(&status[0], DIVERGED);
-    }
     v_next[i] = vec4<f32>(velocity, 0.0);
     x_next[i] = vec4<f32>(x[i].xyz + mul3(velocity, p.h), 0.0);
 }

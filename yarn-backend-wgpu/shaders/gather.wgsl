@@ -12,7 +12,6 @@
 @group(0) @binding(4) var<storage, read> chain: array<vec2<f32>>;
 @group(0) @binding(5) var<storage, read> start: array<u32>;
 @group(0) @binding(6) var<storage, read> incident: array<Contact>;
-@group(0) @binding(7) var<storage, read_write> status: array<atomic<u32>>;
 
 // The node's force, gathered (`node_force.wgsl`).
 fn total_force(i: u32) -> vec3<f32> {

@@ -2,8 +2,7 @@
 // damped velocity v* in place and, without friction, the move into `out`
 // (entry point `step`); or the force alone into `out` (entry point
 // `forces`, for `Backend::compute_forces`). Each mode's file supplies
-// `total_force(i)` and the bindings `p`, `x`, `v`, `out` and `status`. A
-// v* that is not finite or too fast raises DIVERGED.
+// `total_force(i)` and the bindings `p`, `x`, `v` and `out`.
 
 @compute @workgroup_size(WORKGROUP)
 fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
@@ -13,9 +12,6 @@ fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
         return;
     }
     let velocity = damped_velocity(v[i].xyz, total_force(i));
-    if !check_speed(velocity) {
-        atomicOr(&status[0], DIVERGED);
-    }
     v[i] = vec4<f32>(velocity, 0.0);
     if (p.flags & FRICTION_ON) == 0u {
         out[i] = vec4<f32>(x[i].xyz + mul3(velocity, p.h), 0.0);

@@ -57,6 +57,7 @@ pub(crate) struct Kernels {
     pub(crate) friction: Kernel<1>,
     pub(crate) pins: Kernel<1>,
     pub(crate) fused: Kernel<1>,
+    pub(crate) check: Kernel<1>,
 }
 
 /// A GPU device with yarnify's pipelines, shareable between backends.
@@ -130,7 +131,7 @@ impl Gpu {
             gather: build(
                 &device,
                 &shaders::GATHER,
-                &[Uniform, Read, ReadWrite, ReadWrite, Read, Read, Read, ReadWrite],
+                &[Uniform, Read, ReadWrite, ReadWrite, Read, Read, Read],
                 ["step", "forces"],
             ),
             fixed: build(
@@ -149,9 +150,10 @@ impl Gpu {
             fused: build(
                 &device,
                 &shaders::FUSED,
-                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, Read, ReadWrite],
+                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, Read],
                 ["main"],
             ),
+            check: build(&device, &shaders::CHECK, &[Uniform, Read, Read, ReadWrite], ["main"]),
         };
         let limits = device.limits();
         let mut gpu = Self { instance, adapter, device, queue, limits, fused_fma: false, info, errors, kernels };

@@ -248,15 +248,18 @@ struct Buffers {
     pin_count: u32,
     /// Fixed-point accumulators (three i32 per node).
     acc: wgpu::Buffer,
-    /// `status[0]`: the OVERFLOWED and DIVERGED bits a batch raised.
+    /// `status[0]`: the OVERFLOWED and DIVERGED bits a batch raised, and
+    /// the mappable copy each submission ends with, so reading it costs no
+    /// second round trip.
     status: wgpu::Buffer,
+    status_readback: wgpu::Buffer,
     /// The positions and velocities a batch started from, put back if it
     /// overflows or diverges.
     snapshot: [wgpu::Buffer; 2],
 }
 
 /// Bind groups by `[px][pv]`: the forces pass writing the next positions,
-/// the same pass writing `forces`, friction, and pins.
+/// the same pass writing `forces`, friction, pins, and the divergence check.
 #[derive(Debug)]
 struct Groups {
     step: [[wgpu::BindGroup; 2]; 2],
@@ -264,6 +267,7 @@ struct Groups {
     friction: [[wgpu::BindGroup; 2]; 2],
     pins: [[wgpu::BindGroup; 2]; 2],
     fused: [[wgpu::BindGroup; 2]; 2],
+    check: [[wgpu::BindGroup; 2]; 2],
 }
 
 impl Loaded {
@@ -399,8 +403,7 @@ impl Wgpu {
         // force buffer (`probe`).
         let forces_pass = |label, px: usize, pv: usize, out: &wgpu::Buffer| match self.mode {
             Mode::Gather => {
-                let buffers = [&b.params, &x[px], &v[pv], out, &b.chain, &b.start, &b.incident, &b.status];
-                self.bind(&k.gather.layout, label, &buffers)
+                self.bind(&k.gather.layout, label, &[&b.params, &x[px], &v[pv], out, &b.chain, &b.start, &b.incident])
             }
             Mode::FixedPointAtomic => self.bind(
                 &k.fixed.layout,
@@ -416,9 +419,9 @@ impl Wgpu {
                 self.bind(&k.friction.layout, "friction", &buffers)
             }),
             pins: table(&|px, pv| self.bind(&k.pins.layout, "pins", &[&b.params, &x[px], &v[pv], &b.pins])),
+            check: table(&|px, pv| self.bind(&k.check.layout, "check", &[&b.params, &x[px], &v[pv], &b.status])),
             fused: table(&|px, pv| {
-                let buffers =
-                    [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.chain, &b.start, &b.incident, &b.status];
+                let buffers = [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.chain, &b.start, &b.incident];
                 self.bind(&k.fused.layout, "fused", &buffers)
             }),
         }
@@ -496,7 +499,12 @@ impl Wgpu {
             for _ in 0..substeps {
                 self.record_substep(l, &mut pass);
             }
+            let (gx, gy) = self.gpu.groups(l.model.node_count() as u32).unwrap_or((1, 1));
+            pass.set_pipeline(&self.gpu.kernels.check.entries[0]);
+            pass.set_bind_group(0, &l.groups.check[l.px][l.pv], &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
         }
+        Self::record_status(&mut encoder, l);
         self.gpu.queue.submit([encoder.finish()]);
         l.substeps += substeps;
         let result = self.check_status(l, first, l.substeps);
@@ -512,20 +520,29 @@ impl Wgpu {
         result
     }
 
-    /// Wait for the GPU, then read and clear the status the batch of
-    /// substeps `first..end` raised: a fixed-point overflow, or a diverged
-    /// velocity, which the read-back state then names. In the browser,
-    /// where nothing may wait, only device errors are reported.
+    /// End a submission by copying the status to its mappable twin and
+    /// clearing it for the next.
+    fn record_status(encoder: &mut wgpu::CommandEncoder, l: &Loaded) {
+        encoder.copy_buffer_to_buffer(&l.buffers.status, 0, &l.buffers.status_readback, 0, 16);
+        encoder.clear_buffer(&l.buffers.status, 0, None);
+    }
+
+    /// Wait for the GPU, then read the status the batch of substeps
+    /// `first..end` raised (copied by [`Self::record_status`], so this is
+    /// the only wait): a fixed-point overflow, or a diverged state, which
+    /// the read-back state then names. In the browser, where nothing may
+    /// wait, only device errors are reported.
     fn check_status(&self, l: &Loaded, first: u64, end: u64) -> Result<(), BackendError> {
-        self.finish()?;
         if cfg!(target_arch = "wasm32") {
-            return Ok(());
+            return self.finish();
         }
-        let status = bytemuck::pod_read_unaligned::<u32>(&self.read(&l.buffers.status, 4)?);
+        let status = pollster::block_on(read_mapped(&self.gpu.device, &l.buffers.status_readback))
+            .map_err(BackendError::Device)?;
+        self.gpu.take_error().map_err(BackendError::Device)?;
+        let status = bytemuck::pod_read_unaligned::<u32>(&status[..4]);
         if status & (OVERFLOWED | DIVERGED) == 0 {
             return Ok(());
         }
-        self.gpu.queue.write_buffer(&l.buffers.status, 0, &[0u8; 4]);
         if status & OVERFLOWED != 0 {
             return Err(BackendError::Overflow { first, end, max_force: max_force() });
         }
@@ -575,6 +592,12 @@ impl Backend for Wgpu {
             pin_count: 0,
             acc: storage(device, "accumulators", &vec![0i32; 3 * n]),
             status: storage(device, "status", &[0u32; 4]),
+            status_readback: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("status readback"),
+                size: 16,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
             snapshot: [x.len(), v.len()].map(|elements| {
                 device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("snapshot"),
@@ -664,6 +687,7 @@ impl Backend for Wgpu {
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
         }
+        Self::record_status(&mut encoder, loaded);
         self.gpu.queue.submit([encoder.finish()]);
         self.check_status(loaded, loaded.substeps, loaded.substeps)?;
         self.read_vectors(&loaded.buffers.forces, n, forces)

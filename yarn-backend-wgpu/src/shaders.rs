@@ -54,6 +54,9 @@ pub const PINS: Pass = Pass { name: "pins.wgsl", uses: &[], body: include_str!("
 /// point `main`).
 pub const FUSED: Pass = Pass { name: "fused.wgsl", uses: &[NODE_FORCE], body: include_str!("../shaders/fused.wgsl") };
 
+/// The divergence check at the end of a batch (entry point `main`).
+pub const CHECK: Pass = Pass { name: "check.wgsl", uses: &[], body: include_str!("../shaders/check.wgsl") };
+
 /// A plain copy, to measure bandwidth (entry point `main`).
 pub const COPY: Pass = Pass { name: "copy.wgsl", uses: &[], body: include_str!("../shaders/copy.wgsl") };
 
@@ -61,7 +64,7 @@ pub const COPY: Pass = Pass { name: "copy.wgsl", uses: &[], body: include_str!("
 pub const PROBE: Pass = Pass { name: "probe.wgsl", uses: &[], body: include_str!("../shaders/probe.wgsl") };
 
 /// Every pass, for validation.
-pub const ALL: [Pass; 7] = [GATHER, FIXED, FRICTION, PINS, FUSED, COPY, PROBE];
+pub const ALL: [Pass; 8] = [GATHER, FIXED, FRICTION, PINS, FUSED, CHECK, COPY, PROBE];
 
 #[cfg(test)]
 pub(crate) mod tests {

@@ -245,6 +245,7 @@ pub mod strategy {
                     mass: m,
                     substep: 1.0,
                     gravity: g,
+                    substep_limit: yarn_model::STABLE_FRACTION,
                 };
                 Params { substep: fraction * p.stability_bound(), ..p }
             })

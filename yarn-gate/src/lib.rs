@@ -16,6 +16,7 @@ pub mod gpucheck;
 pub mod metrics;
 pub mod pareto;
 pub mod plotdata;
+pub mod stress;
 
 use yarn_model::BackendError;
 use yarn_topology::TopologyError;

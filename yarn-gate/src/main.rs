@@ -46,6 +46,37 @@ enum Command {
     /// each problem's Pareto front and a recommended configuration (writes
     /// pareto.csv and pareto.png).
     Pareto(ParetoArgs),
+    /// Stress the step: the largest stable substep per backend against k_s,
+    /// k_c, k_b and the mass, next to the analytic bound 2/ω_max (writes
+    /// stability.png); or, with --soak N, N substeps of random grabs,
+    /// releases, unravelling and parameter changes.
+    Stress(StressArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct StressArgs {
+    /// Backends, comma-separated; GPU ones are left out, with a warning,
+    /// when there is no adapter.
+    #[arg(long, value_delimiter = ',', default_value = "serial-f32,serial-f64,wgpu")]
+    backend: Vec<String>,
+    /// Patch size for the stability map, WIDTHxHEIGHT.
+    #[arg(long, default_value = "8x8", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Simulated seconds each stability trial runs.
+    #[arg(long, default_value_t = 0.5)]
+    duration: f64,
+    /// Bisection steps on the substep.
+    #[arg(long, default_value_t = 8)]
+    bisections: u32,
+    /// Run a soak of this many substeps on a 16x16 patch instead of the map.
+    #[arg(long)]
+    soak: Option<u64>,
+    /// Folder for stability.png (created if missing).
+    #[arg(long, default_value = "stress")]
+    out: std::path::PathBuf,
+    /// Print JSON instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Debug, clap::Args)]
@@ -294,6 +325,75 @@ fn run_bench(args: &BenchArgs) -> Result<Vec<yarn_gate::bench::BenchRow>, GateEr
     Ok(rows)
 }
 
+/// Run `stress`; returns what to print.
+fn stress(args: &StressArgs) -> Result<String, GateError> {
+    use yarn_gate::stress;
+    if let Some(substeps) = args.soak {
+        let mut reports = Vec::new();
+        for name in &args.backend {
+            let bar = progress_bar(substeps, "{msg:>12} [{bar:40}] {pos}/{len} substeps ({eta})");
+            bar.set_message(name.clone());
+            let report = with_backend!(name.as_str(), 0, backend => {
+                let mut backend = backend;
+                stress::soak(&mut backend, substeps, 1, &mut |done| bar.set_position(done))
+            });
+            bar.finish_and_clear();
+            match report {
+                Ok(report) => reports.push(report),
+                Err(GateError::Gpu(e)) => eprintln!("warning: {name} left out: {e}"),
+                Err(e) => return Err(e),
+            }
+        }
+        if args.json {
+            return Ok(serde_json::to_string_pretty(&reports).expect("reports serialise"));
+        }
+        let mut out = format!(
+            "{:<14} {:>10} {:>8} {:>12} {:>16} {:>7}\n",
+            "backend", "substeps", "actions", "max energy", "final max speed", "finite"
+        );
+        for r in &reports {
+            out += &format!(
+                "{:<14} {:>10} {:>8} {:>12.1} {:>16.3} {:>7}\n",
+                r.backend, r.substeps, r.actions, r.max_energy, r.final_max_speed, r.finite
+            );
+        }
+        return Ok(out);
+    }
+    let config = stress::StressConfig {
+        size: args.size,
+        duration: args.duration,
+        bisections: args.bisections,
+        ..stress::StressConfig::default()
+    };
+    let mut rows = Vec::new();
+    for name in &args.backend {
+        let bar = progress_bar(0, "{msg:>12} [{bar:40}] {pos}/{len} cells");
+        bar.set_message(name.clone());
+        let measured = with_backend!(name.as_str(), 0, backend => {
+            let mut backend = backend;
+            stress::map(&mut backend, &config, &mut |done, total| {
+                bar.set_length(total);
+                bar.set_position(done);
+            })
+        });
+        bar.finish_and_clear();
+        match measured {
+            Ok(measured) => rows.extend(measured),
+            Err(GateError::Gpu(e)) => eprintln!("warning: {name} left out: {e}"),
+            Err(e) => return Err(e),
+        }
+    }
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| GateError::Io { path: args.out.display().to_string(), reason: e.to_string() })?;
+    let png = args.out.join("stability.png");
+    stress::plot(&png, &rows)?;
+    if args.json {
+        return Ok(serde_json::to_string_pretty(&rows).expect("rows serialise"));
+    }
+    let lowest = rows.iter().map(|r| r.ratio).fold(f64::INFINITY, f64::min);
+    Ok(format!("{}lowest stable fraction of 2/ω_max: {lowest:.3}\nwrote {}", stress::table(&rows), png.display()))
+}
+
 /// What `pareto` reports.
 #[derive(Debug, serde::Serialize)]
 struct ParetoReport {
@@ -483,6 +583,16 @@ fn relax<B: Backend>(
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Stress(args) => match stress(&args) {
+            Ok(out) => {
+                println!("{out}");
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                ExitCode::from(2)
+            }
+        },
         Command::Pareto(args) => match pareto(&args) {
             Ok(report) => {
                 if args.json {

@@ -89,6 +89,8 @@ pub struct Model<T> {
     pub coeffs: Coefficients<T>,
     params: Params,
     nodes: usize,
+    /// The mean spring rest length.
+    mean_rest: f64,
 }
 
 impl<T: Real> Model<T> {
@@ -113,6 +115,8 @@ impl<T: Real> Model<T> {
             coeffs: Coefficients::new(params),
             params: *params,
             nodes,
+            mean_rest: fabric.springs().iter().map(|s| s.rest_length).sum::<f64>()
+                / fabric.springs().len().max(1) as f64,
         };
         model.set_pins(fabric.pins())?;
         Ok(model)
@@ -128,9 +132,7 @@ impl<T: Real> Model<T> {
     /// physical motion of the yarn comes near it; an explicit step that
     /// produces it has blown up.
     pub fn divergence_speed(&self) -> f64 {
-        let n = self.spring_rest.len().max(1) as f64;
-        let mean_rest = self.spring_rest.iter().map(|r| r.to_f64()).sum::<f64>() / n;
-        DIVERGENCE_REACH * mean_rest.max(f64::MIN_POSITIVE) / self.params.substep
+        DIVERGENCE_REACH * self.mean_rest.max(f64::MIN_POSITIVE) / self.params.substep
     }
 
     /// The parameters in force.

@@ -1,0 +1,485 @@
+//! `yarn-gate stress`: where the explicit step stops being stable, and a
+//! long soak of random abuse.
+//!
+//! The stability map finds, by bisection, the largest substep h that a
+//! backend survives on a kicked and pulled patch, while one parameter
+//! (k_s, k_c, k_b or the mass) is scaled at a time, and sets it against the
+//! analytic bound 2/ω_max that [`Params::stability_bound`] reports. The
+//! soak runs a patch through random grabs, releases, unravelling and
+//! parameter changes and reports the largest energy it saw and its final
+//! speed.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use nalgebra::Vector3;
+use plotters::prelude::*;
+use serde::Serialize;
+use yarn_model::{Backend, BackendError, Model, Params, State, step};
+use yarn_topology::{Chart, Fabric, Geometry, Pin};
+
+use crate::GateError;
+
+/// A parameter the stability map scales.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Knob {
+    /// Stretch stiffness k_s.
+    Stretch,
+    /// Contact stiffness k_c.
+    Contact,
+    /// Bending stiffness k_b.
+    Bend,
+    /// Node mass m.
+    Mass,
+}
+
+impl Knob {
+    /// Every knob, in report order.
+    pub const ALL: [Knob; 4] = [Knob::Stretch, Knob::Contact, Knob::Bend, Knob::Mass];
+
+    /// Its name in tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Knob::Stretch => "k_s",
+            Knob::Contact => "k_c",
+            Knob::Bend => "k_b",
+            Knob::Mass => "mass",
+        }
+    }
+
+    /// The default parameters with this knob scaled by `factor`.
+    pub fn scaled(self, factor: f64) -> Params {
+        let mut p = Params::default();
+        match self {
+            Knob::Stretch => p.stretch_stiffness *= factor,
+            Knob::Contact => p.contact_stiffness *= factor,
+            Knob::Bend => p.bend_stiffness *= factor,
+            Knob::Mass => p.mass *= factor,
+        }
+        p
+    }
+
+    /// Its value in `params`.
+    pub fn value(self, params: &Params) -> f64 {
+        match self {
+            Knob::Stretch => params.stretch_stiffness,
+            Knob::Contact => params.contact_stiffness,
+            Knob::Bend => params.bend_stiffness,
+            Knob::Mass => params.mass,
+        }
+    }
+}
+
+/// How the stability map is measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StressConfig {
+    /// Patch size in stitches.
+    pub size: (usize, usize),
+    /// Simulated seconds each trial runs.
+    pub duration: f64,
+    /// The largest initial velocity component of the random kick, model
+    /// units per second.
+    pub kick: f64,
+    /// Bisection steps on h.
+    pub bisections: u32,
+    /// Scale factors applied to each knob.
+    pub factors: Vec<f64>,
+}
+
+impl Default for StressConfig {
+    fn default() -> Self {
+        Self { size: (8, 8), duration: 0.5, kick: 50.0, bisections: 8, factors: vec![0.25, 1.0, 4.0] }
+    }
+}
+
+/// One cell of the stability map.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StabilityRow {
+    /// Backend name.
+    pub backend: String,
+    /// The scaled parameter.
+    pub knob: Knob,
+    /// Its value.
+    pub value: f64,
+    /// The analytic bound 2/ω_max, in seconds.
+    pub bound: f64,
+    /// The largest substep that survived the trial, in seconds.
+    pub h_stable: f64,
+    /// `h_stable / bound`.
+    pub ratio: f64,
+}
+
+/// A small deterministic generator (SplitMix64), so runs repeat.
+#[derive(Debug, Clone)]
+pub struct Rng(u64);
+
+impl Rng {
+    /// A generator from `seed`.
+    pub fn new(seed: u64) -> Self {
+        Self(seed)
+    }
+
+    /// The next value in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// A value in [-1, 1).
+    pub fn signed(&mut self) -> f64 {
+        2.0 * self.uniform() - 1.0
+    }
+}
+
+/// Whether `backend` survives `config.duration` at `params`: the patch
+/// starts with a random kick, and the head of its centre stitch is drawn
+/// 3 stitch widths out of the fabric over the run. `Ok(false)` when it
+/// diverges; other failures are errors.
+///
+/// # Errors
+/// When the patch cannot be built, the parameters are refused, or the
+/// backend fails for another reason than divergence.
+pub fn survives<B: Backend>(
+    backend: &mut B,
+    params: &Params,
+    config: &StressConfig,
+    seed: u64,
+) -> Result<bool, GateError> {
+    let fabric = Fabric::from_chart(&Chart::stockinette(config.size.0, config.size.1)?, &Geometry::default())?;
+    backend.load(&fabric, params)?;
+    let mut rng = Rng::new(seed);
+    let mut state = State::<f64>::at_rest(&fabric);
+    for v in &mut state.velocities {
+        *v = Vector3::new(rng.signed(), rng.signed(), rng.signed()) * config.kick;
+    }
+    backend.write_state(&state.cast())?;
+    let (w, h) = config.size;
+    let grabbed = fabric.stitch_node(w / 2, h / 2, yarn_topology::SEG / 2).unwrap_or(0);
+    let out = fabric.course().cross(&fabric.wale()) * (3.0 * Geometry::default().stitch_width);
+    let substeps = (config.duration / params.substep).ceil() as u64;
+    const CHUNKS: u64 = 20;
+    for k in 1..=CHUNKS {
+        let target = fabric.positions()[grabbed] + out * (k as f64 / CHUNKS as f64);
+        backend.set_pins(&[Pin { node: grabbed as u32, target }])?;
+        match backend.advance(substeps / CHUNKS + 1) {
+            Ok(()) => {}
+            Err(BackendError::Diverged { .. } | BackendError::Overflow { .. }) => return Ok(false),
+            Err(e) => return Err(e.into()),
+        }
+    }
+    Ok(true)
+}
+
+/// The largest stable substep for `params` on `backend`, by bisection on
+/// the fraction of the analytic bound between 1 % and 99.9 %, with
+/// [`Params::substep_limit`] raised to let the trials past the measured
+/// limit.
+///
+/// # Errors
+/// As [`survives`].
+pub fn largest_stable_h<B: Backend>(backend: &mut B, params: &Params, config: &StressConfig) -> Result<f64, GateError> {
+    let bound = params.stability_bound();
+    // Validation stops at the measured limit; the map must look past it.
+    let at = |backend: &mut B, fraction: f64| {
+        survives(backend, &Params { substep: fraction * bound, substep_limit: 1.0, ..*params }, config, 7)
+    };
+    let (mut lo, mut hi) = (0.01, 0.999);
+    if at(backend, hi)? {
+        return Ok(hi * bound);
+    }
+    if !at(backend, lo)? {
+        return Ok(0.0);
+    }
+    for _ in 0..config.bisections {
+        let mid = 0.5 * (lo + hi);
+        if at(backend, mid)? { lo = mid } else { hi = mid }
+    }
+    Ok(lo * bound)
+}
+
+/// The stability map of `backend`: every knob at every factor.
+/// `progress(done, total)` counts cells.
+///
+/// # Errors
+/// As [`survives`].
+pub fn map<B: Backend>(
+    backend: &mut B,
+    config: &StressConfig,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Vec<StabilityRow>, GateError> {
+    let total = (Knob::ALL.len() * config.factors.len()) as u64;
+    let mut rows = Vec::new();
+    for knob in Knob::ALL {
+        for &factor in &config.factors {
+            let params = knob.scaled(factor);
+            let h_stable = largest_stable_h(backend, &params, config)?;
+            let bound = params.stability_bound();
+            rows.push(StabilityRow {
+                backend: backend.name(),
+                knob,
+                value: knob.value(&params),
+                bound,
+                h_stable,
+                ratio: h_stable / bound,
+            });
+            progress(rows.len() as u64, total);
+        }
+    }
+    Ok(rows)
+}
+
+/// The map as a table.
+pub fn table(rows: &[StabilityRow]) -> String {
+    let mut out = format!(
+        "{:<14} {:>6} {:>10} {:>14} {:>14} {:>8}\n",
+        "backend", "knob", "value", "2/ω_max (s)", "stable h (s)", "ratio"
+    );
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "{:<14} {:>6} {:>10.4} {:>14.3e} {:>14.3e} {:>8.3}",
+            r.backend,
+            r.knob.name(),
+            r.value,
+            r.bound,
+            r.h_stable,
+            r.ratio
+        );
+    }
+    out
+}
+
+/// Draw the map into a PNG: one panel per knob, the knob's value against
+/// the substep (log-log), the analytic bound as a dashed line and each
+/// backend's largest stable h as points.
+///
+/// # Errors
+/// When the plot cannot be drawn.
+pub fn plot(path: &Path, rows: &[StabilityRow]) -> Result<(), GateError> {
+    crate::plotdata::register_font();
+    let font = crate::plotdata::FONT;
+    let fail = |e: &dyn std::fmt::Display| crate::plotdata::plot_error(path, e);
+    let root = BitMapBackend::new(path, (1280, 960)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let mut backends: Vec<&str> = rows.iter().map(|r| r.backend.as_str()).collect();
+    backends.sort_unstable();
+    backends.dedup();
+    for (panel, knob) in root.split_evenly((2, 2)).iter().zip(Knob::ALL) {
+        let mine: Vec<&StabilityRow> = rows.iter().filter(|r| r.knob == knob && r.h_stable > 0.0).collect();
+        if mine.is_empty() {
+            continue;
+        }
+        let span = |f: &dyn Fn(&StabilityRow) -> f64| {
+            let (lo, hi) = mine.iter().map(|r| f(r)).fold((f64::MAX, f64::MIN), |(l, h), v| (l.min(v), h.max(v)));
+            (lo / 1.6)..(hi * 1.6)
+        };
+        let h_range = {
+            let a = span(&|r| r.bound);
+            let b = span(&|r| r.h_stable);
+            a.start.min(b.start)..a.end.max(b.end)
+        };
+        let mut chart = ChartBuilder::on(panel)
+            .caption(format!("largest stable substep against {}", knob.name()), (font, 22))
+            .margin(12)
+            .x_label_area_size(44)
+            .y_label_area_size(72)
+            .build_cartesian_2d(span(&|r| r.value).log_scale(), h_range.log_scale())
+            .map_err(|e| fail(&e))?;
+        chart
+            .configure_mesh()
+            .x_labels(6)
+            .y_labels(6)
+            .x_label_formatter(&|v| format!("{v:.3}"))
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .x_desc(knob.name())
+            .y_desc("substep h (s)")
+            .label_style((font, 13))
+            .axis_desc_style((font, 15))
+            .draw()
+            .map_err(|e| fail(&e))?;
+        let mut analytic: Vec<(f64, f64)> = mine.iter().map(|r| (r.value, r.bound)).collect();
+        analytic.sort_by(|a, b| a.0.total_cmp(&b.0));
+        analytic.dedup();
+        let grey = RGBColor(120, 120, 120);
+        chart
+            .draw_series(DashedLineSeries::new(analytic, 8, 6, grey.stroke_width(2)))
+            .map_err(|e| fail(&e))?
+            .label("2/ω_max")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], grey.stroke_width(2)));
+        for (k, backend) in backends.iter().enumerate() {
+            let colour = Palette99::pick(k).to_rgba();
+            let mut points: Vec<(f64, f64)> =
+                mine.iter().filter(|r| r.backend == *backend).map(|r| (r.value, r.h_stable)).collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            chart
+                .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
+                .map_err(|e| fail(&e))?
+                .label(*backend)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], colour.stroke_width(2)));
+            chart.draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled()))).map_err(|e| fail(&e))?;
+        }
+        chart
+            .configure_series_labels()
+            .label_font((font, 13))
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::LowerLeft)
+            .draw()
+            .map_err(|e| fail(&e))?;
+    }
+    root.present().map_err(|e| fail(&e))?;
+    Ok(())
+}
+
+/// How a soak ended.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SoakReport {
+    /// Backend name.
+    pub backend: String,
+    /// Substeps run.
+    pub substeps: u64,
+    /// Random actions taken (grabs, moves, releases, unravelled contacts,
+    /// parameter changes).
+    pub actions: u64,
+    /// The largest total energy seen at a check.
+    pub max_energy: f64,
+    /// The largest node speed at the end.
+    pub final_max_speed: f64,
+    /// Every position and velocity is finite at the end.
+    pub finite: bool,
+}
+
+/// Run a 16x16 patch for `substeps` substeps in chunks of 100, taking a
+/// random action before each chunk: grab a random node and drag it up to
+/// two stitch widths, let go, unravel the next contact from the loose end,
+/// or change friction, damping, bending or gravity. A divergence ends the
+/// soak with that error. `progress(done)` counts substeps.
+///
+/// # Errors
+/// Any backend error, divergence included.
+pub fn soak<B: Backend>(
+    backend: &mut B,
+    substeps: u64,
+    seed: u64,
+    progress: &mut dyn FnMut(u64),
+) -> Result<SoakReport, GateError> {
+    const CHUNK: u64 = 100;
+    let fabric = Fabric::from_chart(&Chart::stockinette(16, 16)?, &Geometry::default())?;
+    let mut params = Params::default();
+    backend.load(&fabric, &params)?;
+    let mut scene = Model::<f64>::new(&fabric, &params)?;
+    let mut rng = Rng::new(seed);
+    let mut alive = vec![true; fabric.contacts().len()];
+    let unravel = {
+        let contacts = fabric.contacts();
+        let mut order: Vec<usize> = (0..contacts.len()).collect();
+        order.sort_by_key(|&c| std::cmp::Reverse(contacts[c].a.max(contacts[c].b)));
+        order
+    };
+    let mut next_release = 0;
+    let mut grab: Option<Pin> = None;
+    let (mut done, mut actions, mut max_energy) = (0, 0, 0.0f64);
+    let reach = 2.0 * Geometry::default().stitch_width;
+    while done < substeps {
+        actions += 1;
+        match (rng.uniform() * 6.0) as u32 {
+            0 | 1 => {
+                let node = (rng.uniform() * fabric.node_count() as f64) as usize % fabric.node_count();
+                let from = widen_state(&backend.state()?).positions[node];
+                let target = from + Vector3::new(rng.signed(), rng.signed(), rng.signed()) * reach;
+                grab = Some(Pin { node: node as u32, target });
+            }
+            2 => grab = None,
+            3 => {
+                // Unravel a few contacts from the loose end, and knit the
+                // fabric back up once it has come apart.
+                for _ in 0..4 {
+                    if let Some(&c) = unravel.get(next_release) {
+                        alive[c] = false;
+                        next_release += 1;
+                    } else {
+                        alive.fill(true);
+                        next_release = 0;
+                    }
+                }
+                backend.set_contacts_alive(&alive)?;
+                scene.set_contacts_alive(&alive)?;
+            }
+            _ => {
+                params.friction = 0.6 * rng.uniform();
+                params.damping = 2.0 + 18.0 * rng.uniform();
+                params.bend_stiffness = 3.0 + 9.0 * rng.uniform();
+                params.gravity = if rng.uniform() < 0.3 { 9.81 } else { 0.0 };
+                backend.set_params(&params)?;
+                scene.set_params(&params)?;
+            }
+        }
+        backend.set_pins(grab.as_slice())?;
+        let n = CHUNK.min(substeps - done);
+        backend.advance(n)?;
+        done += n;
+        if done % (10 * CHUNK) == 0 || done == substeps {
+            let state = widen_state(&backend.state()?);
+            max_energy = max_energy.max(step::energy(&scene, &state).total());
+        }
+        progress(done);
+    }
+    let state = widen_state(&backend.state()?);
+    let finite = state.positions.iter().chain(&state.velocities).all(|p| p.iter().all(|c| c.is_finite()));
+    Ok(SoakReport {
+        backend: backend.name(),
+        substeps: done,
+        actions,
+        max_energy,
+        final_max_speed: state.max_speed(),
+        finite,
+    })
+}
+
+fn widen_state<T: yarn_model::Real>(state: &State<T>) -> State<f64> {
+    state.cast()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use yarn_backend_cpu::Serial;
+
+    #[test]
+    fn the_generator_repeats_and_spreads() {
+        let (mut a, mut b) = (Rng::new(3), Rng::new(3));
+        let xs: Vec<f64> = (0..1000).map(|_| a.uniform()).collect();
+        assert!(xs.iter().zip((0..1000).map(|_| b.uniform())).all(|(x, y)| *x == y));
+        assert!(xs.iter().all(|x| (0.0..1.0).contains(x)));
+        let mean = xs.iter().sum::<f64>() / 1000.0;
+        assert!((mean - 0.5).abs() < 0.05, "mean {mean}");
+    }
+
+    #[test]
+    fn the_default_substep_survives_and_the_bound_does_not() {
+        let config = StressConfig { size: (4, 4), duration: 0.2, ..StressConfig::default() };
+        let mut backend = Serial::<f32>::new();
+        assert!(survives(&mut backend, &Params::default(), &config, 1).expect("runs"));
+        let edge =
+            Params { substep: 0.999 * Params::default().stability_bound(), substep_limit: 1.0, ..Params::default() };
+        assert!(!survives(&mut backend, &edge, &config, 1).expect("runs"), "h at the analytic bound survived");
+        let h = largest_stable_h(&mut backend, &Params::default(), &StressConfig { bisections: 4, ..config })
+            .expect("bisects");
+        let bound = Params::default().stability_bound();
+        assert!(h > Params::default().substep && h < bound, "stable h {h} against the bound {bound}");
+        // Validation refuses what the map finds unstable.
+        assert!(h < Params::default().stable_limit() * 1.1, "stable h {h} far above the refused limit");
+    }
+
+    #[test]
+    fn a_short_soak_ends_finite_with_bounded_energy() {
+        let mut backend = Serial::<f32>::new();
+        let report = soak(&mut backend, 3_000, 11, &mut |_| {}).expect("the soak survives");
+        assert!(report.finite && report.substeps == 3_000 && report.actions == 30);
+        assert!(report.max_energy.is_finite() && report.max_energy < 1e5, "{report:?}");
+    }
+}
