@@ -70,6 +70,10 @@ macro_rules! run_pass {
     };
 }
 
+/// Substeps between two looks at which blocks may sleep or must wake: the
+/// look scans every awake velocity, so it is not taken every substep.
+const SLEEP_CHECK: u64 = 10;
+
 /// A 3-vector field stored by component.
 #[derive(Debug, Clone, Default)]
 struct Field<T> {
@@ -221,6 +225,12 @@ pub(crate) struct Kernel<T: Real> {
     /// The state at the start of the current `advance`, to put back if it
     /// diverges.
     saved: [Field<T>; 2],
+    /// Per block: asleep (not integrated), and the substeps its nodes have
+    /// all stayed below the sleep speed.
+    asleep: Vec<bool>,
+    quiet: Vec<u32>,
+    /// Per block: the other blocks it shares a segment or a contact with.
+    neighbours: Vec<Vec<u32>>,
 }
 
 impl<T: Real> Kernel<T> {
@@ -244,6 +254,9 @@ impl<T: Real> Kernel<T> {
             substeps: 0,
             diverged: AtomicBool::new(false),
             saved: [Field::zeros(n), Field::zeros(n)],
+            asleep: vec![false; n.div_ceil(BLOCK)],
+            quiet: vec![0; n.div_ceil(BLOCK)],
+            neighbours: neighbours(&model, n.div_ceil(BLOCK)),
             model,
         };
         kernel.refresh_targets();
@@ -251,24 +264,33 @@ impl<T: Real> Kernel<T> {
         Ok(kernel)
     }
 
-    /// Rebuild the alive contacts, their per-node lists and their buffers
-    /// from the model's liveness.
+    /// Rebuild the contacts the passes run over, their per-node lists and
+    /// their buffers: the alive contacts with a node in an awake block.
     fn refresh_contacts(&mut self) {
         let model = &self.model;
-        let (start, entries) = model.incidence();
+        let (_, entries) = model.incidence();
+        let awake = |node: u32| !self.asleep[node as usize / BLOCK];
         let mut slot = vec![u32::MAX; model.contacts.len()];
         self.live.clear();
-        for (k, c) in model.contacts.iter().enumerate().filter(|&(k, _)| model.alive[k]) {
-            slot[k] = self.live.len() as u32;
-            self.live.push(*c);
+        for (k, c) in model.contacts.iter().enumerate() {
+            if model.alive[k] && (awake(c.a) || awake(c.b)) {
+                slot[k] = self.live.len() as u32;
+                self.live.push(*c);
+            }
         }
+        let mut start = vec![0u32; model.node_count() + 1];
         self.incident = entries
             .into_iter()
+            .filter(|&(_, contact)| slot[contact as usize] != u32::MAX)
             .map(|(node, contact)| {
+                start[node as usize + 1] += 1;
                 let sign = if model.contacts[contact as usize].a == node { T::one() } else { -T::one() };
                 Incidence { node, contact: slot[contact as usize], sign }
             })
             .collect();
+        for i in 0..model.node_count() {
+            start[i + 1] += start[i];
+        }
         self.start = start;
         self.contact_force = Field::zeros(self.live.len());
         self.friction = Field::zeros(self.live.len());
@@ -282,15 +304,20 @@ impl<T: Real> Kernel<T> {
     pub(crate) fn set_params(&mut self, params: &Params) -> Result<(), BackendError> {
         self.model.set_params(params)?;
         self.refresh_targets();
+        self.wake_all();
         Ok(())
     }
 
     pub(crate) fn set_pins(&mut self, pins: &[Pin]) -> Result<(), BackendError> {
-        self.model.set_pins(pins)
+        self.model.set_pins(pins)?;
+        self.wake_all();
+        Ok(())
     }
 
     pub(crate) fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
         self.model.set_contacts_alive(alive)?;
+        self.asleep.fill(false);
+        self.quiet.fill(0);
         self.refresh_contacts();
         Ok(())
     }
@@ -299,7 +326,82 @@ impl<T: Real> Kernel<T> {
         state.check_len(self.model.node_count())?;
         self.positions = Field::from_vectors(&state.positions);
         self.velocities = Field::from_vectors(&state.velocities);
+        self.wake_all();
         Ok(())
+    }
+
+    /// Wake every sleeping block.
+    fn wake_all(&mut self) {
+        self.quiet.fill(0);
+        if self.asleep.iter().any(|&a| a) {
+            self.asleep.fill(false);
+            self.refresh_contacts();
+        }
+    }
+
+    /// Blocks asleep now, for tests and reports.
+    pub(crate) fn sleeping_blocks(&self) -> usize {
+        self.asleep.iter().filter(|&&a| a).count()
+    }
+
+    /// Every [`SLEEP_CHECK`] substeps: count quiet substeps, put blocks that
+    /// have stayed slow long enough (with no pin and no fast neighbour) to
+    /// sleep, and wake sleepers next to a block moving at twice the sleep
+    /// speed.
+    fn update_sleep(&mut self) {
+        let limit = self.model.params().sleep_speed;
+        if limit <= 0.0 {
+            return;
+        }
+        let blocks = self.asleep.len();
+        // The fastest node of each awake block, squared.
+        let speed2: Vec<f64> = (0..blocks)
+            .map(|b| {
+                if self.asleep[b] {
+                    return 0.0;
+                }
+                let [x, y, z] = self.velocities.block(b);
+                let mut max = T::zero();
+                for k in 0..x.len() {
+                    let s = x[k] * x[k] + y[k] * y[k] + z[k] * z[k];
+                    max = if s > max { s } else { max };
+                }
+                max.to_f64()
+            })
+            .collect();
+        let mut pinned = vec![false; blocks];
+        for &(node, _) in &self.model.pins {
+            pinned[node as usize / BLOCK] = true;
+        }
+        let (sleep2, wake2) = (limit * limit, 4.0 * limit * limit);
+        let fast_neighbour = |b: usize| self.neighbours[b].iter().any(|&n| speed2[n as usize] > wake2);
+        let mut changed = false;
+        for b in 0..blocks {
+            if self.asleep[b] {
+                if pinned[b] || fast_neighbour(b) {
+                    (self.asleep[b], self.quiet[b], changed) = (false, 0, true);
+                }
+                continue;
+            }
+            self.quiet[b] = if speed2[b] < sleep2 && !pinned[b] { self.quiet[b] + SLEEP_CHECK as u32 } else { 0 };
+            if self.quiet[b] >= yarn_model::SLEEP_AFTER && !fast_neighbour(b) {
+                (self.asleep[b], changed) = (true, true);
+                let range = b * BLOCK..((b + 1) * BLOCK).min(self.positions.len());
+                for (v, (x, next)) in
+                    [&mut self.velocities.x, &mut self.velocities.y, &mut self.velocities.z].into_iter().zip([
+                        (&self.positions.x, &mut self.next_positions.x),
+                        (&self.positions.y, &mut self.next_positions.y),
+                        (&self.positions.z, &mut self.next_positions.z),
+                    ])
+                {
+                    v[range.clone()].fill(T::zero());
+                    next[range.clone()].copy_from_slice(&x[range.clone()]);
+                }
+            }
+        }
+        if changed {
+            self.refresh_contacts();
+        }
     }
 
     pub(crate) fn read_state(&self, state: &mut State<T>) {
@@ -309,6 +411,8 @@ impl<T: Real> Kernel<T> {
 
     /// F = −∇U(x) on every node (SPEC §4 step 1), into `forces`.
     pub(crate) fn compute_forces(&mut self, forces: &mut Vec<V3<T>>) {
+        // Every node's force needs every alive contact.
+        self.wake_all();
         self.contact_forces();
         let mut field = Field::zeros(self.model.node_count());
         let this = &*self;
@@ -531,6 +635,9 @@ impl<T: Real> Kernel<T> {
         self.saved[1].clone_from(&self.velocities);
         for done in 1..=substeps {
             self.substep();
+            if (self.substeps + done).is_multiple_of(SLEEP_CHECK) {
+                self.update_sleep();
+            }
             if self.diverged.swap(false, Ordering::Relaxed) {
                 let limit = self.model.divergence_speed();
                 let mut state = State::default();
@@ -561,6 +668,9 @@ impl<T: Real> Kernel<T> {
         let mut next_positions = std::mem::take(&mut self.next_positions);
         let this = &*self;
         let body = |(b, (mut v, mut next_x)): (usize, (BlockMut<'_, T>, BlockMut<'_, T>))| {
+            if this.asleep[b] {
+                return;
+            }
             this.with_scratch(|scratch| {
                 this.block_forces(b, scratch);
                 let (forces, x) = (scratch.force.block(0), this.positions.block(b));
@@ -627,6 +737,9 @@ impl<T: Real> Kernel<T> {
         let mut velocities = std::mem::take(&mut self.velocities);
         let this = &*self;
         let body = |(b, (mut x, mut v)): (usize, (BlockMut<'_, T>, BlockMut<'_, T>))| {
+            if this.asleep[b] {
+                return;
+            }
             for group in this.contact_groups(b) {
                 let j = group[0].node as usize - b * BLOCK;
                 let dv = group
@@ -649,4 +762,26 @@ impl<T: Real> Kernel<T> {
         );
         (self.positions, self.velocities) = (positions, velocities);
     }
+}
+
+/// Per block, the other blocks it shares a segment or a contact with.
+fn neighbours<T: Real>(model: &Model<T>, blocks: usize) -> Vec<Vec<u32>> {
+    let mut out = vec![Vec::new(); blocks];
+    let mut link = |a: usize, b: usize| {
+        if a != b {
+            out[a].push(b as u32);
+            out[b].push(a as u32);
+        }
+    };
+    for b in 1..blocks {
+        link(b - 1, b);
+    }
+    for c in &model.contacts {
+        link(c.a as usize / BLOCK, c.b as usize / BLOCK);
+    }
+    for list in &mut out {
+        list.sort_unstable();
+        list.dedup();
+    }
+    out
 }

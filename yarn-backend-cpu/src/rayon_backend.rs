@@ -20,6 +20,12 @@ impl Rayon {
         Self::default()
     }
 
+    /// Blocks of 512 nodes asleep now (see [`yarn_model::Params::sleep_speed`]);
+    /// 0 before load.
+    pub fn sleeping_blocks(&self) -> usize {
+        self.kernel.as_ref().map_or(0, Kernel::sleeping_blocks)
+    }
+
     /// A backend on its own pool of `threads` threads.
     ///
     /// # Errors

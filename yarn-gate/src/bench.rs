@@ -27,6 +27,9 @@ pub struct BenchConfig {
     /// The fraction of contacts released, the last in yarn order first (the
     /// top rows, as after unravelling).
     pub dead: f64,
+    /// Substeps run before timing, to let the fabric settle (the warm-up
+    /// is a quarter of a run otherwise).
+    pub settle: u64,
 }
 
 impl Default for BenchConfig {
@@ -40,6 +43,7 @@ impl Default for BenchConfig {
             params: Params::default(),
             pin_top: false,
             dead: 0.0,
+            settle: 0,
         }
     }
 }
@@ -67,6 +71,8 @@ pub struct BenchRow {
     pub pins: usize,
     /// Released contacts.
     pub dead_contacts: usize,
+    /// The sleep speed (0: sleeping off).
+    pub sleep_speed: f64,
     /// Median nanoseconds per node per substep.
     pub ns_per_node_substep: f64,
     /// Fastest and slowest run, same unit: the spread of the repeats.
@@ -108,7 +114,7 @@ pub fn bench<B: Backend>(
         // 10-substep runs of 4M and 8M nodes varied 2-3x run to run).
         let substeps = (config.work_per_run / nodes as u64).max(50);
         // Warm-up: caches, the thread pool, and the release transient.
-        backend.advance(substeps / 4 + 1)?;
+        backend.advance(config.settle.max(substeps / 4 + 1))?;
         let mut times = (0..config.repeats)
             .map(|r| {
                 let start = Instant::now();
@@ -132,6 +138,7 @@ pub fn bench<B: Backend>(
             gravity: config.params.gravity,
             pins: pins.len(),
             dead_contacts: contacts - alive_contacts,
+            sleep_speed: config.params.sleep_speed,
             ns_per_node_substep: per(median),
             ns_min: per(times[0]),
             ns_max: per(times[times.len() - 1]),
@@ -150,7 +157,7 @@ pub fn table(rows: &[BenchRow]) -> String {
     );
     for r in rows {
         out += &format!(
-            "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14.2} {:>16} {:>14.0}  μ={} g={} pins={} dead={}\n",
+            "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14.2} {:>16} {:>14.0}  μ={} g={} pins={} dead={} sleep={}\n",
             r.backend,
             r.threads,
             r.size,
@@ -162,7 +169,8 @@ pub fn table(rows: &[BenchRow]) -> String {
             r.friction,
             r.gravity,
             r.pins,
-            r.dead_contacts
+            r.dead_contacts,
+            r.sleep_speed
         );
     }
     out

@@ -246,6 +246,7 @@ pub mod strategy {
                     substep: 1.0,
                     gravity: g,
                     substep_limit: yarn_model::STABLE_FRACTION,
+                    sleep_speed: 0.0,
                 };
                 Params { substep: fraction * p.stability_bound(), ..p }
             })

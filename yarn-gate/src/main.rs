@@ -196,6 +196,12 @@ struct BenchArgs {
     /// unravelling).
     #[arg(long, default_value_t = 0.0)]
     dead: f64,
+    /// Let blocks of nodes slower than this sleep (CPU backends; 0: never).
+    #[arg(long, default_value_t = 0.0)]
+    sleep: f64,
+    /// Substeps to run before timing, so the fabric settles.
+    #[arg(long, default_value_t = 0)]
+    settle: u64,
     /// Print a JSON array of rows instead of the table.
     #[arg(long)]
     json: bool,
@@ -298,13 +304,19 @@ fn check(args: &CheckArgs) -> Result<CheckReport, GateError> {
 
 fn run_bench(args: &BenchArgs) -> Result<Vec<yarn_gate::bench::BenchRow>, GateError> {
     let defaults = Params::default();
-    let params = Params { friction: args.friction.unwrap_or(defaults.friction), gravity: args.gravity, ..defaults };
+    let params = Params {
+        friction: args.friction.unwrap_or(defaults.friction),
+        gravity: args.gravity,
+        sleep_speed: args.sleep,
+        ..defaults
+    };
     let config = BenchConfig {
         sides: args.sizes.clone(),
         repeats: args.repeats.max(1),
         params,
         pin_top: args.pin_top,
         dead: args.dead,
+        settle: args.settle,
         ..BenchConfig::default()
     };
     let mut rows = Vec::new();

@@ -339,6 +339,7 @@ mod tests {
             gravity: 0.0,
             pins: 0,
             dead_contacts: 0,
+            sleep_speed: 0.0,
             ns_per_node_substep: 1e9 / per_s / nodes as f64,
             ns_min: 0.0,
             ns_max: 0.0,

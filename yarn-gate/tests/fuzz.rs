@@ -31,7 +31,7 @@ fn awkward() -> impl Strategy<Value = f64> {
 }
 
 fn params() -> impl Strategy<Value = Params> {
-    (prop::array::uniform10(prop_oneof![12 => Just(None), 1 => awkward().prop_map(Some)])).prop_map(|v| {
+    (prop::array::uniform11(prop_oneof![12 => Just(None), 1 => awkward().prop_map(Some)])).prop_map(|v| {
         let d = Params::default();
         let pick = |k: usize, default: f64| v[k].unwrap_or(default);
         Params {
@@ -45,6 +45,7 @@ fn params() -> impl Strategy<Value = Params> {
             substep: pick(7, d.substep),
             gravity: pick(8, d.gravity),
             substep_limit: pick(9, d.substep_limit),
+            sleep_speed: pick(10, d.sleep_speed),
         }
     })
 }

@@ -37,7 +37,7 @@ pub mod terms;
 
 pub use backend::{Backend, BackendError};
 pub use model::{Coefficients, ContactRest, DIVERGENCE_REACH, Model, State};
-pub use params::{ParamError, Params, STABLE_FRACTION};
+pub use params::{ParamError, Params, SLEEP_AFTER, STABLE_FRACTION};
 pub use real::{Real, V3, widen};
 pub use simulation::Simulation;
 pub use step::Energy;

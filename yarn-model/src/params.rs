@@ -49,7 +49,17 @@ pub struct Params {
     /// [`STABLE_FRACTION`], the measured one). Raise it only to explore
     /// instability, as `yarn-gate stress` does.
     pub substep_limit: f64,
+    /// Sleeping (CPU backends): a block of nodes whose speeds all stay
+    /// below this for [`SLEEP_AFTER`] substeps stops being integrated until
+    /// a neighbouring block moves at twice this speed, a pin lands in it,
+    /// or the parameters, state or contacts change. 0 never sleeps
+    /// (default: 0).
+    pub sleep_speed: f64,
 }
+
+/// Substeps a block must stay below [`Params::sleep_speed`] before it
+/// sleeps.
+pub const SLEEP_AFTER: u32 = 100;
 
 /// The fraction of the analytic bound 2/ω_max below which the explicit
 /// step is stable, as measured: `yarn-gate stress` found the largest stable
@@ -79,6 +89,7 @@ impl Default for Params {
             // The gate measures the yarn alone (SPEC §6).
             gravity: 0.0,
             substep_limit: STABLE_FRACTION,
+            sleep_speed: 0.0,
         }
     }
 }
@@ -179,6 +190,7 @@ impl Params {
             ("substep", self.substep, Positive),
             ("gravity", self.gravity, Any),
             ("substep_limit", self.substep_limit, Fraction),
+            ("sleep_speed", self.sleep_speed, NonNegative),
         ];
         for (name, value, valid) in fields {
             if !value.is_finite() {
