@@ -130,3 +130,21 @@ fn divergence_is_reported_and_the_state_kept() {
         }
     }
 }
+
+/// A device lost in the middle of a run comes back as an error from the
+/// next call, not a hang or a panic.
+#[test]
+fn a_lost_device_is_an_error() {
+    // A context of its own: the loss must not touch the shared one.
+    let Some(_) = gpu() else { return };
+    let gpu = Gpu::new().expect("a second context");
+    let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
+    backend.load(&patch(), &Params::default()).unwrap();
+    backend.advance(10).unwrap();
+    gpu.device().destroy();
+    match backend.advance(10) {
+        Err(BackendError::Device(message)) => assert!(!message.is_empty()),
+        other => panic!("expected a device error, got {other:?}"),
+    }
+    assert!(matches!(backend.state(), Err(BackendError::Device(_))));
+}
