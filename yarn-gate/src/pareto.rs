@@ -20,6 +20,7 @@ use yarn_model::{Backend, Model, Params, State, step};
 use yarn_topology::{Chart, Fabric, Geometry, Pin, Side};
 
 use crate::GateError;
+use crate::plotdata::{PanelAxes, log_log_panel, panel_legend};
 
 /// The control interval in simulated seconds: pins move and states are
 /// compared on this clock. The paper's h = 1/1500 s is 10 substeps a tick.
@@ -357,7 +358,6 @@ pub fn write(dir: &Path, rows: &[ParetoRow]) -> Result<[PathBuf; 2], GateError> 
 
 fn plot(path: &Path, rows: &[ParetoRow]) -> Result<(), GateError> {
     crate::plotdata::register_font();
-    let font = crate::plotdata::FONT;
     let fail = |e: &dyn std::fmt::Display| crate::plotdata::plot_error(path, e);
     let root = BitMapBackend::new(path, (1280, 960)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
@@ -375,25 +375,13 @@ fn plot(path: &Path, rows: &[ParetoRow]) -> Result<(), GateError> {
             let (lo, hi) = mine.iter().map(|r| f(r)).fold((f64::MAX, f64::MIN), |(l, h), v| (l.min(v), h.max(v)));
             (lo / 1.5)..(hi * 1.5)
         };
-        let mut chart = ChartBuilder::on(panel)
-            .caption(format!("{}: wall time against error", problem.name()), (font, 22))
-            .margin(12)
-            .x_label_area_size(44)
-            .y_label_area_size(72)
-            .build_cartesian_2d(span(&|r| r.wall_s_per_sim_s).log_scale(), span(&|r| r.pos_err_max).log_scale())
-            .map_err(|e| fail(&e))?;
-        chart
-            .configure_mesh()
-            .x_labels(8)
-            .y_labels(8)
-            .x_label_formatter(&|v| format!("{v:.2e}"))
-            .y_label_formatter(&|v| format!("{v:.0e}"))
-            .x_desc("wall s per simulated s")
-            .y_desc("max position error (r)")
-            .label_style((font, 13))
-            .axis_desc_style((font, 15))
-            .draw()
-            .map_err(|e| fail(&e))?;
+        let axes = PanelAxes {
+            caption: format!("{}: wall time against error", problem.name()),
+            labels: ("wall s per simulated s", "max position error (r)"),
+            ticks: 8,
+            x_format: |v| format!("{v:.2e}"),
+        };
+        let mut chart = log_log_panel(panel, path, &axes, span(&|r| r.wall_s_per_sim_s), span(&|r| r.pos_err_max))?;
         let mut front: Vec<(f64, f64)> =
             mine.iter().filter(|r| r.on_front).map(|r| (r.wall_s_per_sim_s, r.pos_err_max)).collect();
         front.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -419,14 +407,7 @@ fn plot(path: &Path, rows: &[ParetoRow]) -> Result<(), GateError> {
             .map_err(|e| fail(&e))?
             .label("recommended")
             .legend(|(x, y)| Circle::new((x + 10, y), 7, BLACK.stroke_width(2)));
-        chart
-            .configure_series_labels()
-            .label_font((font, 13))
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .position(SeriesLabelPosition::LowerLeft)
-            .draw()
-            .map_err(|e| fail(&e))?;
+        panel_legend(&mut chart, path)?;
     }
     root.present().map_err(|e| fail(&e))?;
     Ok(())

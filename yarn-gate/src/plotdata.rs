@@ -45,6 +45,65 @@ pub(crate) fn plot_error(path: &Path, e: impl std::fmt::Display) -> GateError {
     GateError::Render(format!("could not draw {}: {e}", path.display()))
 }
 
+/// A log-log chart in one panel of a multi-panel figure.
+pub(crate) type LogLog<'a, 'b> = ChartContext<'a, BitMapBackend<'b>, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>;
+
+/// How a log-log panel is labelled.
+pub(crate) struct PanelAxes<'s> {
+    /// The panel's title.
+    pub(crate) caption: String,
+    /// The axis descriptions, x then y.
+    pub(crate) labels: (&'s str, &'s str),
+    /// Tick labels on each axis.
+    pub(crate) ticks: usize,
+    /// How x tick values are printed (y ticks print as powers of ten).
+    pub(crate) x_format: fn(&f64) -> String,
+}
+
+/// A log-log chart over `x` and `y` on `panel`, with its mesh drawn, for
+/// figures written to `path`.
+pub(crate) fn log_log_panel<'a, 'b>(
+    panel: &'a DrawingArea<BitMapBackend<'b>, plotters::coord::Shift>,
+    path: &Path,
+    axes: &PanelAxes<'_>,
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+) -> Result<LogLog<'a, 'b>, GateError> {
+    let fail = |e: &dyn std::fmt::Display| plot_error(path, e);
+    let mut chart = ChartBuilder::on(panel)
+        .caption(&axes.caption, (FONT, 22))
+        .margin(12)
+        .x_label_area_size(44)
+        .y_label_area_size(72)
+        .build_cartesian_2d(x.log_scale(), y.log_scale())
+        .map_err(|e| fail(&e))?;
+    chart
+        .configure_mesh()
+        .x_labels(axes.ticks)
+        .y_labels(axes.ticks)
+        .x_label_formatter(&axes.x_format)
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .x_desc(axes.labels.0)
+        .y_desc(axes.labels.1)
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 15))
+        .draw()
+        .map_err(|e| fail(&e))?;
+    Ok(chart)
+}
+
+/// A panel's legend, in its lower left corner (empty in these figures).
+pub(crate) fn panel_legend<'a, 'b: 'a>(chart: &mut LogLog<'a, 'b>, path: &Path) -> Result<(), GateError> {
+    chart
+        .configure_series_labels()
+        .label_font((FONT, 13))
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::LowerLeft)
+        .draw()
+        .map_err(|e| plot_error(path, e))
+}
+
 /// Relax a `width`×`height` patch on `backend` for `steps` substeps, then
 /// pull it along each axis at every strain of [`STRAINS`], holding each for
 /// `pull_steps`. Returns the relaxation and the probes, course first.

@@ -19,6 +19,7 @@ use yarn_model::{Backend, BackendError, Model, Params, State, step};
 use yarn_topology::{Chart, Fabric, Geometry, Pin};
 
 use crate::GateError;
+use crate::plotdata::{PanelAxes, log_log_panel, panel_legend};
 
 /// A parameter the stability map scales.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -261,7 +262,6 @@ pub fn table(rows: &[StabilityRow]) -> String {
 /// When the plot cannot be drawn.
 pub fn plot(path: &Path, rows: &[StabilityRow]) -> Result<(), GateError> {
     crate::plotdata::register_font();
-    let font = crate::plotdata::FONT;
     let fail = |e: &dyn std::fmt::Display| crate::plotdata::plot_error(path, e);
     let root = BitMapBackend::new(path, (1280, 960)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
@@ -282,25 +282,13 @@ pub fn plot(path: &Path, rows: &[StabilityRow]) -> Result<(), GateError> {
             let b = span(&|r| r.h_stable);
             a.start.min(b.start)..a.end.max(b.end)
         };
-        let mut chart = ChartBuilder::on(panel)
-            .caption(format!("largest stable substep against {}", knob.name()), (font, 22))
-            .margin(12)
-            .x_label_area_size(44)
-            .y_label_area_size(72)
-            .build_cartesian_2d(span(&|r| r.value).log_scale(), h_range.log_scale())
-            .map_err(|e| fail(&e))?;
-        chart
-            .configure_mesh()
-            .x_labels(6)
-            .y_labels(6)
-            .x_label_formatter(&|v| format!("{v:.3}"))
-            .y_label_formatter(&|v| format!("{v:.0e}"))
-            .x_desc(knob.name())
-            .y_desc("substep h (s)")
-            .label_style((font, 13))
-            .axis_desc_style((font, 15))
-            .draw()
-            .map_err(|e| fail(&e))?;
+        let axes = PanelAxes {
+            caption: format!("largest stable substep against {}", knob.name()),
+            labels: (knob.name(), "substep h (s)"),
+            ticks: 6,
+            x_format: |v| format!("{v:.3}"),
+        };
+        let mut chart = log_log_panel(panel, path, &axes, span(&|r| r.value), h_range)?;
         let mut analytic: Vec<(f64, f64)> = mine.iter().map(|r| (r.value, r.bound)).collect();
         analytic.sort_by(|a, b| a.0.total_cmp(&b.0));
         analytic.dedup();
@@ -322,14 +310,7 @@ pub fn plot(path: &Path, rows: &[StabilityRow]) -> Result<(), GateError> {
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], colour.stroke_width(2)));
             chart.draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled()))).map_err(|e| fail(&e))?;
         }
-        chart
-            .configure_series_labels()
-            .label_font((font, 13))
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .position(SeriesLabelPosition::LowerLeft)
-            .draw()
-            .map_err(|e| fail(&e))?;
+        panel_legend(&mut chart, path)?;
     }
     root.present().map_err(|e| fail(&e))?;
     Ok(())
@@ -389,7 +370,7 @@ pub fn soak<B: Backend>(
         match (rng.uniform() * 6.0) as u32 {
             0 | 1 => {
                 let node = (rng.uniform() * fabric.node_count() as f64) as usize % fabric.node_count();
-                let from = widen_state(&backend.state()?).positions[node];
+                let from = backend.state()?.cast::<f64>().positions[node];
                 let target = from + Vector3::new(rng.signed(), rng.signed(), rng.signed()) * reach;
                 grab = Some(Pin { node: node as u32, target });
             }
@@ -423,12 +404,12 @@ pub fn soak<B: Backend>(
         backend.advance(n)?;
         done += n;
         if done % (10 * CHUNK) == 0 || done == substeps {
-            let state = widen_state(&backend.state()?);
+            let state = backend.state()?.cast::<f64>();
             max_energy = max_energy.max(step::energy(&scene, &state).total());
         }
         progress(done);
     }
-    let state = widen_state(&backend.state()?);
+    let state = backend.state()?.cast::<f64>();
     let finite = state.positions.iter().chain(&state.velocities).all(|p| p.iter().all(|c| c.is_finite()));
     Ok(SoakReport {
         backend: backend.name(),
@@ -438,10 +419,6 @@ pub fn soak<B: Backend>(
         final_max_speed: state.max_speed(),
         finite,
     })
-}
-
-fn widen_state<T: yarn_model::Real>(state: &State<T>) -> State<f64> {
-    state.cast()
 }
 
 #[cfg(test)]
