@@ -202,6 +202,8 @@ pub(crate) struct Kernel<T: Real> {
     /// The alive contacts, in contact order: the contact passes run over
     /// these only, so released contacts cost nothing.
     live: Vec<ContactRest<T>>,
+    /// Each contact's slot in `live`, or `u32::MAX` when it is not there.
+    slot: Vec<u32>,
     /// The alive contacts of node i are `incident[start[i]..start[i + 1]]`,
     /// each naming its slot in `live`.
     start: Vec<u32>,
@@ -244,6 +246,7 @@ impl<T: Real> Kernel<T> {
             velocities: Field::from_vectors(&state.velocities),
             target: Vec::new(),
             live: Vec::new(),
+            slot: Vec::new(),
             start: Vec::new(),
             incident: Vec::new(),
             contact_force: Field::zeros(0),
@@ -292,6 +295,7 @@ impl<T: Real> Kernel<T> {
             start[i + 1] += start[i];
         }
         self.start = start;
+        self.slot = slot;
         self.contact_force = Field::zeros(self.live.len());
         self.friction = Field::zeros(self.live.len());
     }
@@ -315,7 +319,9 @@ impl<T: Real> Kernel<T> {
     }
 
     pub(crate) fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
-        self.model.set_contacts_alive(alive)?;
+        let mut positions = Vec::new();
+        self.positions.to_vectors(&mut positions);
+        self.model.set_contacts_alive(alive, &positions)?;
         self.asleep.fill(false);
         self.quiet.fill(0);
         self.refresh_contacts();
@@ -633,8 +639,15 @@ impl<T: Real> Kernel<T> {
     pub(crate) fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
         self.saved[0].clone_from(&self.positions);
         self.saved[1].clone_from(&self.velocities);
+        let reseats = self.model.save_reseats();
         for done in 1..=substeps {
             self.substep();
+            let (live, slot) = (&mut self.live, &self.slot);
+            self.model.close_reseats(1, |contact, rest| {
+                if let Some(c) = live.get_mut(slot[contact as usize] as usize) {
+                    c.rest = rest;
+                }
+            });
             if (self.substeps + done).is_multiple_of(SLEEP_CHECK) {
                 self.update_sleep();
             }
@@ -648,6 +661,8 @@ impl<T: Real> Kernel<T> {
                 let (node, speed) = state.first_diverged(limit).unwrap_or((0, f64::NAN));
                 self.positions.clone_from(&self.saved[0]);
                 self.velocities.clone_from(&self.saved[1]);
+                self.model.restore_reseats(&reseats);
+                self.refresh_contacts();
                 return Err(BackendError::Diverged { substep: self.substeps + done, node, speed, limit });
             }
         }

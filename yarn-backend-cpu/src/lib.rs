@@ -161,7 +161,8 @@ impl<T: Real> Backend for Reference<T> {
     }
 
     fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
-        self.loaded()?.model.set_contacts_alive(alive)
+        let Loaded { model, state, .. } = self.loaded()?;
+        model.set_contacts_alive(alive, &state.positions)
     }
 
     fn write_state(&mut self, state: &State<T>) -> Result<(), BackendError> {
@@ -184,11 +185,13 @@ impl<T: Real> Backend for Reference<T> {
 
     fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
         let Loaded { model, state, scratch, substeps: done } = self.loaded()?;
-        let (saved, limit) = (state.clone(), model.divergence_speed());
+        let (saved, reseats, limit) = (state.clone(), model.save_reseats(), model.divergence_speed());
         for k in 1..=substeps {
             step::substep(model, state, scratch);
+            model.close_reseats(1, |_, _| ());
             if let Some((node, speed)) = state.first_diverged(limit) {
                 *state = saved;
+                model.restore_reseats(&reseats);
                 return Err(BackendError::Diverged { substep: *done + k, node, speed, limit });
             }
         }

@@ -27,8 +27,10 @@ struct Params {
     one: f32,
     // The speed beyond which a node has diverged (`Model::divergence_speed`).
     max_speed: f32,
-    pad0: f32,
-    pad1: f32,
+    // How far a re-seated contact's rest separation closes per substep, and
+    // how many the reseat pass holds (`reseat.wgsl`).
+    reseat_step: f32,
+    reseats: u32,
 }
 
 // Mirrors `GpuContact`.

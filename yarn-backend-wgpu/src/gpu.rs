@@ -57,6 +57,7 @@ pub(crate) struct Kernels {
     pub(crate) friction: Kernel<1>,
     pub(crate) pins: Kernel<1>,
     pub(crate) fused: Kernel<1>,
+    pub(crate) reseat: Kernel<1>,
     pub(crate) check: Kernel<1>,
 }
 
@@ -153,6 +154,7 @@ impl Gpu {
                 &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, Read],
                 ["main"],
             ),
+            reseat: build(&device, &shaders::RESEAT, &[Uniform, ReadWrite, ReadWrite, Read], ["main"]),
             check: build(&device, &shaders::CHECK, &[Uniform, Read, Read, ReadWrite], ["main"]),
         };
         let limits = device.limits();

@@ -28,7 +28,10 @@ pub(crate) struct GpuParams {
     pub(crate) one: f32,
     /// The divergence speed.
     pub(crate) max_speed: f32,
-    pub(crate) pad: [f32; 2],
+    /// How far a re-seated contact closes per substep.
+    pub(crate) reseat_step: f32,
+    /// Entries in the reseat buffer.
+    pub(crate) reseats: u32,
 }
 
 /// `Params::flags` bit: friction is on, so the move is in the friction pass.
@@ -53,6 +56,17 @@ pub(crate) struct GpuContact {
     pub(crate) alive: u32,
 }
 
+/// Mirrors `Reseat` in `reseat.wgsl`: a re-seated contact and the slots of
+/// its two copies in the per-node lists.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct GpuReseat {
+    pub(crate) contact: u32,
+    pub(crate) slot_a: u32,
+    pub(crate) slot_b: u32,
+    pub(crate) knit: f32,
+}
+
 /// Mirrors `Pin`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
@@ -70,7 +84,11 @@ mod tests {
 
     /// (name, size) of the WGSL struct `name`, with each member's offset.
     fn wgsl_layout(name: &str) -> (u32, Vec<(String, u32)>) {
-        let (module, _) = shaders::tests::validate(&shaders::PINS);
+        wgsl_layout_in(&shaders::PINS, name)
+    }
+
+    fn wgsl_layout_in(pass: &shaders::Pass, name: &str) -> (u32, Vec<(String, u32)>) {
+        let (module, _) = shaders::tests::validate(pass);
         let mut layouter = naga::proc::Layouter::default();
         layouter.update(module.to_ctx()).expect("layout");
         let (handle, ty) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).expect(name);
@@ -106,8 +124,8 @@ mod tests {
             offset_of!(GpuParams, max_force),
             offset_of!(GpuParams, one),
             offset_of!(GpuParams, max_speed),
-            offset_of!(GpuParams, pad),
-            offset_of!(GpuParams, pad) + 4,
+            offset_of!(GpuParams, reseat_step),
+            offset_of!(GpuParams, reseats),
         ];
         assert_eq!(members.len(), rust.len(), "field count differs: {members:?}");
         for ((name, wgsl), rust) in members.iter().zip(rust) {
@@ -130,6 +148,19 @@ mod tests {
         );
         assert_eq!(wgsl_layout("Pin").0 as usize, size_of::<GpuPin>());
         assert_eq!(offsets("Pin"), [offset_of!(GpuPin, goal), offset_of!(GpuPin, node)].map(|o| o as u32));
+    }
+
+    #[test]
+    fn reseat_matches_wgsl() {
+        let (size, members) = wgsl_layout_in(&shaders::RESEAT, "Reseat");
+        assert_eq!(size as usize, size_of::<GpuReseat>());
+        let rust = [
+            offset_of!(GpuReseat, contact),
+            offset_of!(GpuReseat, slot_a),
+            offset_of!(GpuReseat, slot_b),
+            offset_of!(GpuReseat, knit),
+        ];
+        assert_eq!(members.into_iter().map(|(_, o)| o as usize).collect::<Vec<_>>(), rust);
     }
 
     #[test]

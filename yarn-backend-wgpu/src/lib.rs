@@ -53,7 +53,7 @@ use std::sync::Arc;
 
 use bytemuck::Pod;
 pub use gpu::{Gpu, GpuError, read_mapped};
-use layout::{DIVERGED, FRICTION_ON, FUSED_FMA, GpuContact, GpuParams, GpuPin, OVERFLOWED};
+use layout::{DIVERGED, FRICTION_ON, FUSED_FMA, GpuContact, GpuParams, GpuPin, GpuReseat, OVERFLOWED};
 pub use wgpu;
 use wgpu::util::DeviceExt;
 use yarn_model::terms::MIN_SIN_THETA;
@@ -246,6 +246,9 @@ struct Buffers {
     incident: wgpu::Buffer,
     pins: wgpu::Buffer,
     pin_count: u32,
+    /// The re-seated contacts closing, with their slots in `incident`.
+    reseats: wgpu::Buffer,
+    reseat_count: u32,
     /// Fixed-point accumulators (three i32 per node).
     acc: wgpu::Buffer,
     /// `status[0]`: the OVERFLOWED and DIVERGED bits a batch raised, and
@@ -268,6 +271,7 @@ struct Groups {
     pins: [[wgpu::BindGroup; 2]; 2],
     fused: [[wgpu::BindGroup; 2]; 2],
     check: [[wgpu::BindGroup; 2]; 2],
+    reseat: wgpu::BindGroup,
 }
 
 impl Loaded {
@@ -292,7 +296,8 @@ impl Loaded {
             max_force: max_force() as f32,
             max_speed: self.model.divergence_speed() as f32,
             one: 1.0,
-            pad: [0.0; 2],
+            reseat_step: self.model.reseat_step(),
+            reseats: self.buffers.reseat_count,
         }
     }
 }
@@ -352,11 +357,24 @@ fn gpu_contacts(model: &Model<f32>) -> Vec<GpuContact> {
 pub const FUSE_BELOW: usize = 65_536;
 
 /// Each node's alive contacts in contact order, as `start` offsets into
-/// `incident`, which holds a copy of each contact record per node.
-fn incidence(model: &Model<f32>) -> (Vec<u32>, Vec<GpuContact>) {
+/// `incident`, which holds a copy of each contact record per node; and the
+/// re-seated contacts with the slots of their two copies.
+fn incidence(model: &Model<f32>) -> (Vec<u32>, Vec<GpuContact>, Vec<GpuReseat>) {
     let contacts = gpu_contacts(model);
     let (start, entries) = model.incidence();
-    (start, entries.into_iter().map(|(_, k)| contacts[k as usize]).collect())
+    let mut slots = vec![[0u32; 2]; contacts.len()];
+    for (e, &(node, k)) in entries.iter().enumerate() {
+        slots[k as usize][usize::from(contacts[k as usize].b == node)] = e as u32;
+    }
+    let reseats = model
+        .reseating()
+        .iter()
+        .map(|r| {
+            let [slot_a, slot_b] = slots[r.contact as usize];
+            GpuReseat { contact: r.contact, slot_a, slot_b, knit: r.knit }
+        })
+        .collect();
+    (start, entries.into_iter().map(|(_, k)| contacts[k as usize]).collect(), reseats)
 }
 
 impl Wgpu {
@@ -420,6 +438,7 @@ impl Wgpu {
             }),
             pins: table(&|px, pv| self.bind(&k.pins.layout, "pins", &[&b.params, &x[px], &v[pv], &b.pins])),
             check: table(&|px, pv| self.bind(&k.check.layout, "check", &[&b.params, &x[px], &v[pv], &b.status])),
+            reseat: self.bind(&k.reseat.layout, "reseat", &[&b.params, &b.contacts, &b.incident, &b.reseats]),
             fused: table(&|px, pv| {
                 let buffers = [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.chain, &b.start, &b.incident];
                 self.bind(&k.fused.layout, "fused", &buffers)
@@ -433,6 +452,24 @@ impl Wgpu {
             l.model.pins.iter().map(|&(node, target)| GpuPin { goal: [target.x, target.y, target.z], node }).collect();
         l.buffers.pin_count = pins.len() as u32;
         l.buffers.pins = storage(&self.gpu.device, "pins", &pins);
+        l.groups = self.bind_all(&l.buffers);
+        self.write_params(l);
+    }
+
+    /// Upload the model's contact records, per-node lists and re-seated
+    /// contacts, and rebind.
+    fn upload_contacts(&self, l: &mut Loaded) {
+        let queue = &self.gpu.queue;
+        queue.write_buffer(&l.buffers.contacts, 0, bytemuck::cast_slice(&gpu_contacts(&l.model)));
+        // Only alive contacts are listed per node, so a released contact
+        // costs the gather nothing.
+        let (start, incident, reseats) = incidence(&l.model);
+        queue.write_buffer(&l.buffers.start, 0, bytemuck::cast_slice(&start));
+        if !incident.is_empty() {
+            queue.write_buffer(&l.buffers.incident, 0, bytemuck::cast_slice(&incident));
+        }
+        l.buffers.reseat_count = reseats.len() as u32;
+        l.buffers.reseats = storage(&self.gpu.device, "reseats", &reseats);
         l.groups = self.bind_all(&l.buffers);
         self.write_params(l);
     }
@@ -488,6 +525,11 @@ impl Wgpu {
 
     fn advance_loaded(&self, l: &mut Loaded, substeps: u64) -> Result<(), BackendError> {
         let (px, pv, first) = (l.px, l.pv, l.substeps);
+        // The host's model closes the re-seated contacts as the GPU will,
+        // which says for how many substeps the reseat pass is needed.
+        let reseats = l.model.save_reseats();
+        let closing = l.model.close_reseats(substeps, |_, _| ());
+        let reseat_groups = self.gpu.groups(l.buffers.reseat_count).unwrap_or((1, 1));
         let device = &self.gpu.device;
         let mut encoder = device.create_command_encoder(&Default::default());
         // A batch can fail part way: keep the state it started from.
@@ -496,8 +538,13 @@ impl Wgpu {
         encoder.copy_buffer_to_buffer(&l.buffers.v[pv], 0, saved_v, 0, saved_v.size());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            for _ in 0..substeps {
+            for s in 0..substeps {
                 self.record_substep(l, &mut pass);
+                if s < closing {
+                    pass.set_pipeline(&self.gpu.kernels.reseat.entries[0]);
+                    pass.set_bind_group(0, &l.groups.reseat, &[]);
+                    pass.dispatch_workgroups(reseat_groups.0, reseat_groups.1, 1);
+                }
             }
             let (gx, gy) = self.gpu.groups(l.model.node_count() as u32).unwrap_or((1, 1));
             pass.set_pipeline(&self.gpu.kernels.check.entries[0]);
@@ -515,6 +562,10 @@ impl Wgpu {
             encoder.copy_buffer_to_buffer(saved_v, 0, &l.buffers.v[pv], 0, saved_v.size());
             self.gpu.queue.submit([encoder.finish()]);
             (l.px, l.pv, l.substeps) = (px, pv, first);
+            if closing > 0 {
+                l.model.restore_reseats(&reseats);
+                self.upload_contacts(l);
+            }
             self.finish()?;
         }
         result
@@ -570,7 +621,7 @@ impl Backend for Wgpu {
         self.check_fits("the node buffer (bytes)", n as u64 * 16)?;
         self.check_fits("the per-node contact records (bytes)", contacts as u64 * 32)?;
         self.check_dispatch(n.max(contacts))?;
-        let (start, incident) = incidence(&model);
+        let (start, incident, _) = incidence(&model);
         let device = &self.gpu.device;
         let state = State::<f32>::at_rest(fabric);
         let (x, v) = (vec4s(&state.positions), vec4s(&state.velocities));
@@ -590,6 +641,8 @@ impl Backend for Wgpu {
             incident: storage(device, "incident", &incident),
             pins: storage(device, "pins", &[0u32; 4]),
             pin_count: 0,
+            reseats: storage(device, "reseats", &[0u32; 4]),
+            reseat_count: 0,
             acc: storage(device, "accumulators", &vec![0i32; 3 * n]),
             status: storage(device, "status", &[0u32; 4]),
             status_readback: device.create_buffer(&wgpu::BufferDescriptor {
@@ -632,19 +685,21 @@ impl Backend for Wgpu {
         result
     }
 
+    /// As the trait says. Reviving a contact reads the positions back,
+    /// which the browser cannot do while waiting: there it is an error.
     fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
-        self.loaded()?.model.set_contacts_alive(alive)?;
-        let loaded = self.loaded.as_ref().ok_or(BackendError::NotLoaded)?;
-        let queue = &self.gpu.queue;
-        queue.write_buffer(&loaded.buffers.contacts, 0, bytemuck::cast_slice(&gpu_contacts(&loaded.model)));
-        // Only alive contacts are listed per node, so a released contact
-        // costs the gather nothing.
-        let (start, incident) = incidence(&loaded.model);
-        queue.write_buffer(&loaded.buffers.start, 0, bytemuck::cast_slice(&start));
-        if !incident.is_empty() {
-            queue.write_buffer(&loaded.buffers.incident, 0, bytemuck::cast_slice(&incident));
+        let mut loaded = self.loaded.take().ok_or(BackendError::NotLoaded)?;
+        let mut positions = Vec::new();
+        let mut result = Ok(());
+        if loaded.model.revives(alive) && alive.len() == loaded.model.contacts.len() {
+            result = self.read_vectors(&loaded.buffers.x[loaded.px], loaded.model.node_count(), &mut positions);
         }
-        Ok(())
+        result = result.and_then(|()| loaded.model.set_contacts_alive(alive, &positions));
+        if result.is_ok() {
+            self.upload_contacts(&mut loaded);
+        }
+        self.loaded = Some(loaded);
+        result
     }
 
     fn write_state(&mut self, state: &State<f32>) -> Result<(), BackendError> {

@@ -54,6 +54,9 @@ pub const PINS: Pass = Pass { name: "pins.wgsl", uses: &[], body: include_str!("
 /// point `main`).
 pub const FUSED: Pass = Pass { name: "fused.wgsl", uses: &[NODE_FORCE], body: include_str!("../shaders/fused.wgsl") };
 
+/// Re-seated contacts closing (entry point `main`).
+pub const RESEAT: Pass = Pass { name: "reseat.wgsl", uses: &[], body: include_str!("../shaders/reseat.wgsl") };
+
 /// The divergence check at the end of a batch (entry point `main`).
 pub const CHECK: Pass = Pass { name: "check.wgsl", uses: &[], body: include_str!("../shaders/check.wgsl") };
 
@@ -64,7 +67,7 @@ pub const COPY: Pass = Pass { name: "copy.wgsl", uses: &[], body: include_str!("
 pub const PROBE: Pass = Pass { name: "probe.wgsl", uses: &[], body: include_str!("../shaders/probe.wgsl") };
 
 /// Every pass, for validation.
-pub const ALL: [Pass; 8] = [GATHER, FIXED, FRICTION, PINS, FUSED, CHECK, COPY, PROBE];
+pub const ALL: [Pass; 9] = [GATHER, FIXED, FRICTION, PINS, FUSED, RESEAT, CHECK, COPY, PROBE];
 
 #[cfg(test)]
 pub(crate) mod tests {

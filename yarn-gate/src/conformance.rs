@@ -158,7 +158,9 @@ pub fn substep_matches_reference<B: Backend<Real = f32>>(make: impl Fn() -> B, s
 }
 
 /// A [`TRAJECTORY_STEPS`]-substep trajectory stays within `tol` of the
-/// reference, in yarn radii, and so does its energy.
+/// reference, in yarn radii, and so does its energy. Half way through,
+/// every contact the scene released is revived, so each backend's
+/// re-seating ([`yarn_model::Reseat`]) is checked too.
 ///
 /// # Panics
 /// When the check fails.
@@ -169,10 +171,8 @@ pub fn trajectory_matches_reference<B: Backend<Real = f32>>(
 ) -> (f64, f64) {
     let mut backend = make();
     scene.load(&mut backend).expect("load");
-    let mut reference = scene.reference();
-    backend.advance(TRAJECTORY_STEPS).expect("advance");
-    reference.advance(TRAJECTORY_STEPS).expect("reference advance");
-    let (got, want) = (backend.state().expect("state"), reference.state().expect("state"));
+    let got = revived_trajectory(&mut backend, scene.alive.len()).expect("advance").1;
+    let (mid, want) = revived_trajectory(&mut scene.reference(), scene.alive.len()).expect("reference advance");
     let r = scene.fabric.yarn_radius();
     let err = max_diff(&got.positions, &want.positions) / r;
     let nudged = [1.0 + f32::EPSILON, 1.0 - f32::EPSILON].map(|factor| nudged_reference_end(scene, factor));
@@ -186,7 +186,10 @@ pub fn trajectory_matches_reference<B: Backend<Real = f32>>(
 
     let mut model = Model::<f64>::new(&scene.fabric, &scene.params).expect("valid scene");
     model.set_pins(&scene.pins).expect("valid pins");
-    model.set_contacts_alive(&scene.alive).expect("valid flags");
+    // Every contact is alive at load, so this only releases: no positions matter.
+    model.set_contacts_alive(&scene.alive, &[]).expect("valid flags");
+    model.set_contacts_alive(&vec![true; scene.alive.len()], &mid.cast().positions).expect("valid flags");
+    model.close_reseats(TRAJECTORY_STEPS - REVIVE_AT, |_, _| ());
     let energy = |state: &State<f32>| step::energy(&model, &state.cast()).total();
     let (e_got, e_want) = (energy(&got), energy(&want));
     let scale = e_want.abs().max(1.0);
@@ -197,6 +200,22 @@ pub fn trajectory_matches_reference<B: Backend<Real = f32>>(
     (err, energy_err)
 }
 
+/// Substeps into the trajectory check at which released contacts revive.
+pub const REVIVE_AT: u64 = TRAJECTORY_STEPS / 2;
+
+/// Run [`TRAJECTORY_STEPS`] substeps, reviving every contact after
+/// [`REVIVE_AT`]: the states at the revival and at the end.
+fn revived_trajectory<B: Backend<Real = f32>>(
+    backend: &mut B,
+    contacts: usize,
+) -> Result<(State<f32>, State<f32>), BackendError> {
+    backend.advance(REVIVE_AT)?;
+    let mid = backend.state()?;
+    backend.set_contacts_alive(&vec![true; contacts])?;
+    backend.advance(TRAJECTORY_STEPS - REVIVE_AT)?;
+    Ok((mid, backend.state()?))
+}
+
 /// The reference trajectory's end when every starting coordinate is scaled
 /// by `factor`, one ulp from 1: how far it lands from the un-nudged end is
 /// the scene's own sensitivity to rounding.
@@ -205,9 +224,7 @@ fn nudged_reference_end(scene: &Scene, factor: f32) -> State<f32> {
     for x in &mut nudged.state.positions {
         *x *= factor;
     }
-    let mut serial = nudged.reference();
-    serial.advance(TRAJECTORY_STEPS).expect("reference advance");
-    serial.state().expect("state")
+    revived_trajectory(&mut nudged.reference(), scene.alive.len()).expect("reference advance").1
 }
 
 /// Random scenes for `proptest`.

@@ -388,7 +388,7 @@ pub fn soak<B: Backend>(
                     }
                 }
                 backend.set_contacts_alive(&alive)?;
-                scene.set_contacts_alive(&alive)?;
+                scene.set_contacts_alive(&alive, &backend.state()?.cast().positions)?;
             }
             _ => {
                 params.friction = 0.6 * rng.uniform();
@@ -402,6 +402,7 @@ pub fn soak<B: Backend>(
         backend.set_pins(grab.as_slice())?;
         let n = CHUNK.min(substeps - done);
         backend.advance(n)?;
+        scene.close_reseats(n, |_, _| ());
         done += n;
         if done % (10 * CHUNK) == 0 || done == substeps {
             let state = backend.state()?.cast::<f64>();
@@ -425,6 +426,7 @@ pub fn soak<B: Backend>(
 mod tests {
     use super::*;
     use yarn_backend_cpu::Serial;
+    use yarn_topology::Side;
 
     #[test]
     fn the_generator_repeats_and_spreads() {
@@ -450,6 +452,61 @@ mod tests {
         assert!(h > Params::default().substep && h < bound, "stable h {h} against the bound {bound}");
         // Validation refuses what the map finds unstable.
         assert!(h < Params::default().stable_limit() * 1.1, "stable h {h} far above the refused limit");
+    }
+
+    /// A fabric hung from its top row with every contact released drifts
+    /// apart (tethers 4–5 units off their rest); reviving them all at their
+    /// knitted rest would store 5x its energy. Re-seated, the revival adds nothing, and the contacts
+    /// close back to their rest within a few hundred substeps.
+    #[test]
+    fn reviving_a_drifted_fabric_adds_no_energy_and_reknits() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(16, 16).unwrap(), &Geometry::default()).unwrap();
+        let params = Params { gravity: 9.81, ..Params::default() };
+        let rest = fabric.positions();
+        let pins: Vec<Pin> =
+            fabric.side_nodes(Side::Top).into_iter().map(|node| Pin { node, target: rest[node as usize] }).collect();
+        let mut backend = Serial::<f32>::new();
+        backend.load(&fabric, &params).unwrap();
+        backend.set_pins(&pins).unwrap();
+        let mut scene = Model::<f64>::new(&fabric, &params).unwrap();
+        scene.set_pins(&pins).unwrap();
+        let contacts = fabric.contacts().len();
+        backend.set_contacts_alive(&vec![false; contacts]).unwrap();
+        scene.set_contacts_alive(&vec![false; contacts], &[]).unwrap();
+        backend.advance(3_000).unwrap();
+        let drifted = backend.state().unwrap().cast::<f64>();
+        let off_rest = |state: &State<f64>| {
+            fabric
+                .contacts()
+                .iter()
+                .map(|c| ((state.positions[c.b as usize] - state.positions[c.a as usize]).norm() - c.rest).abs())
+                .fold(0.0, f64::max)
+        };
+        assert!(off_rest(&drifted) > 3.0, "the contacts did not drift: {}", off_rest(&drifted));
+        let before = step::energy(&scene, &drifted).total();
+        let mut knitted = Model::<f64>::new(&fabric, &params).unwrap();
+        knitted.set_pins(&pins).unwrap();
+        assert!(step::energy(&knitted, &drifted).total() > 5.0 * before, "a plain revival would not spike");
+
+        backend.set_contacts_alive(&vec![true; contacts]).unwrap();
+        scene.set_contacts_alive(&vec![true; contacts], &drifted.positions).unwrap();
+        let revived = step::energy(&scene, &drifted).total();
+        assert!((revived - before).abs() < 1e-9 * before, "revival changed the energy: {before} -> {revived}");
+        let (mut peak, mut fastest) = (revived, 0.0f64);
+        for _ in 0..100 {
+            backend.advance(10).unwrap();
+            scene.close_reseats(10, |_, _| ());
+            let state = backend.state().unwrap().cast::<f64>();
+            peak = peak.max(step::energy(&scene, &state).total());
+            fastest = fastest.max(state.max_speed());
+        }
+        assert!(peak < 1.5 * before, "energy peaked at {peak} from {before}");
+        // The fabric gathers up as its contacts close, at up to 80 units/s
+        // here; revived at their knitted rest, nodes passed 400.
+        assert!(fastest < 100.0, "nodes reached {fastest} units/s");
+        assert!(scene.reseating().is_empty(), "contacts still closing after 1000 substeps");
+        let end = backend.state().unwrap().cast::<f64>();
+        assert!(off_rest(&end) < 0.1, "contacts not back at rest: {}", off_rest(&end));
     }
 
     #[test]

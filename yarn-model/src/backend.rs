@@ -142,7 +142,10 @@ pub trait Backend {
     /// [`BackendError::Topology`] for a bad pin, or [`BackendError::NotLoaded`].
     fn set_pins(&mut self, pins: &[Pin]) -> Result<(), BackendError>;
 
-    /// Set the liveness of every contact, one flag per contact.
+    /// Set the liveness of every contact, one flag per contact. A contact
+    /// that comes alive away from its rest separation is re-seated at its
+    /// length and moves back after every substep ([`crate::Reseat`],
+    /// [`crate::Model::set_contacts_alive`]), so reviving adds no energy.
     ///
     /// # Errors
     /// [`BackendError::LengthMismatch`] or [`BackendError::NotLoaded`].

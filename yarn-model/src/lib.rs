@@ -36,7 +36,7 @@ pub mod step;
 pub mod terms;
 
 pub use backend::{Backend, BackendError};
-pub use model::{Coefficients, ContactRest, DIVERGENCE_REACH, Model, State};
+pub use model::{Coefficients, ContactRest, DIVERGENCE_REACH, Model, RESEAT_SPEED, Reseat, State};
 pub use params::{ParamError, Params, SLEEP_AFTER, STABLE_FRACTION};
 pub use real::{Real, V3, widen};
 pub use simulation::Simulation;

@@ -71,6 +71,26 @@ pub struct ContactRest<T> {
 /// before it counts as diverged ([`Model::divergence_speed`]).
 pub const DIVERGENCE_REACH: f64 = 10.0;
 
+/// How fast a re-seated contact's rest separation closes back to its
+/// knitted value, in mean segment lengths per simulated second
+/// ([`Model::reseat_step`]).
+pub const RESEAT_SPEED: f64 = 10.0;
+
+/// A contact revived while its nodes were not at its knitted rest
+/// separation d_c. Its two-sided tether would snap them to d_c with the
+/// energy ½ k_c (ℓ − d_c)², enough to blow a fabric up when they have
+/// drifted apart, so instead its rest separation is re-seated at its
+/// length ℓ (no energy added) and moves back to d_c by
+/// [`Model::reseat_step`] after every substep: the yarns are drawn back
+/// together (or apart) at [`RESEAT_SPEED`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reseat<T> {
+    /// The contact.
+    pub contact: u32,
+    /// Its knitted rest separation d_c, where the closing stops.
+    pub knit: T,
+}
+
 /// A fabric's element tables and rest values in precision `T`, with the
 /// current parameters, pins and contact liveness.
 #[derive(Debug, Clone, PartialEq)]
@@ -83,6 +103,9 @@ pub struct Model<T> {
     pub contacts: Vec<ContactRest<T>>,
     /// Liveness of each contact; dead contacts exert no force or friction.
     pub alive: Vec<bool>,
+    /// The contacts whose rest separation (in `contacts`) is re-seated and
+    /// still closing, in contact order.
+    reseating: Vec<Reseat<T>>,
     /// Pinned nodes and their targets.
     pub pins: Vec<(u32, V3<T>)>,
     /// The parameters, converted.
@@ -111,6 +134,7 @@ impl<T: Real> Model<T> {
             rest_angle: fabric.triples().iter().map(|t| T::of(t.rest_angle)).collect(),
             contacts: fabric.contacts().iter().map(|c| ContactRest { a: c.a, b: c.b, rest: T::of(c.rest) }).collect(),
             alive: vec![true; fabric.contacts().len()],
+            reseating: Vec::new(),
             pins: Vec::new(),
             coeffs: Coefficients::new(params),
             params: *params,
@@ -188,14 +212,92 @@ impl<T: Real> Model<T> {
         (start, entries)
     }
 
-    /// Set the liveness of every contact.
+    /// Whether [`Model::set_contacts_alive`] with `alive` needs the
+    /// positions: some contact comes alive, or one is still closing.
+    pub fn revives(&self, alive: &[bool]) -> bool {
+        !self.reseating.is_empty() || alive.iter().zip(&self.alive).any(|(&now, &was)| now && !was)
+    }
+
+    /// Set the liveness of every contact, at `positions` (read only when
+    /// [`Model::revives`] says so; otherwise they may be empty). A contact
+    /// that comes alive away from its rest separation is re-seated
+    /// at its length ([`Reseat`]), as is every alive contact still closing
+    /// from an earlier revival; a contact that dies gets its knitted rest
+    /// back.
     ///
     /// # Errors
-    /// [`BackendError::LengthMismatch`] unless there is one flag per contact.
-    pub fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
+    /// [`BackendError::LengthMismatch`] unless there is one flag per contact
+    /// and, when they are read, one position per node; the model is
+    /// unchanged then.
+    pub fn set_contacts_alive(&mut self, alive: &[bool], positions: &[V3<T>]) -> Result<(), BackendError> {
         check_len("contact liveness flags", self.contacts.len(), alive.len())?;
+        if !self.revives(alive) {
+            self.alive.copy_from_slice(alive);
+            return Ok(());
+        }
+        check_len("positions", self.nodes, positions.len())?;
+        let mut knit: Vec<Option<T>> = vec![None; self.contacts.len()];
+        for r in self.reseating.drain(..) {
+            self.contacts[r.contact as usize].rest = r.knit;
+            knit[r.contact as usize] = Some(r.knit);
+        }
+        for (k, c) in self.contacts.iter_mut().enumerate() {
+            let revived = alive[k] && (!self.alive[k] || knit[k].is_some());
+            let length = (positions[c.b as usize] - positions[c.a as usize]).norm();
+            if revived && length != c.rest {
+                self.reseating.push(Reseat { contact: k as u32, knit: c.rest });
+                c.rest = length;
+            }
+        }
         self.alive.copy_from_slice(alive);
         Ok(())
+    }
+
+    /// The re-seated contacts still closing.
+    pub fn reseating(&self) -> &[Reseat<T>] {
+        &self.reseating
+    }
+
+    /// How far a re-seated rest separation closes in one substep:
+    /// [`RESEAT_SPEED`] mean segment lengths per second, times h.
+    pub fn reseat_step(&self) -> T {
+        T::of(RESEAT_SPEED * self.mean_rest * self.params.substep)
+    }
+
+    /// Move every re-seated rest separation toward d_c by
+    /// [`Model::reseat_step`], `substeps` times (rest ← max(d_c, rest −
+    /// step) from above, min(d_c, rest + step) from below, as the backends
+    /// do after each substep), dropping those that reach d_c. `changed(contact,
+    /// rest)` hears each new rest separation. Returns how many of the
+    /// substeps had one still closing: after them there is nothing to do.
+    pub fn close_reseats(&mut self, substeps: u64, mut changed: impl FnMut(u32, T)) -> u64 {
+        let step = self.reseat_step();
+        let mut open = 0;
+        while open < substeps && !self.reseating.is_empty() {
+            open += 1;
+            let contacts = &mut self.contacts;
+            self.reseating.retain(|r| {
+                let c = &mut contacts[r.contact as usize];
+                c.rest = if c.rest > r.knit { r.knit.max(c.rest - step) } else { r.knit.min(c.rest + step) };
+                changed(r.contact, c.rest);
+                c.rest != r.knit
+            });
+        }
+        open
+    }
+
+    /// The re-seated contacts and their rest separations now, to put back
+    /// with [`Model::restore_reseats`] when an advance is undone.
+    pub fn save_reseats(&self) -> Vec<(Reseat<T>, T)> {
+        self.reseating.iter().map(|r| (*r, self.contacts[r.contact as usize].rest)).collect()
+    }
+
+    /// Put back what [`Model::save_reseats`] saved.
+    pub fn restore_reseats(&mut self, saved: &[(Reseat<T>, T)]) {
+        for &(r, rest) in saved {
+            self.contacts[r.contact as usize].rest = rest;
+        }
+        self.reseating = saved.iter().map(|&(r, _)| r).collect();
     }
 }
 
@@ -266,4 +368,64 @@ impl<T: Real> State<T> {
 
 fn check_len(what: &'static str, expected: usize, got: usize) -> Result<(), BackendError> {
     if expected == got { Ok(()) } else { Err(BackendError::LengthMismatch { what, expected, got }) }
+}
+
+#[cfg(test)]
+mod tests {
+    use yarn_topology::{Chart, Geometry};
+
+    use super::*;
+
+    /// Released contacts revived with one pulled 3 units apart and one
+    /// pushed 0.2 units together: both are re-seated at their length and
+    /// step back to d_c, one from above and one from below; the rest are
+    /// revived as they were. A released contact forgets its re-seating.
+    #[test]
+    fn revived_contacts_are_reseated_and_close_back() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
+        let mut model = Model::<f64>::new(&fabric, &Params::default()).unwrap();
+        let knit: Vec<f64> = model.contacts.iter().map(|c| c.rest).collect();
+        let n = knit.len();
+        let mut positions: Vec<V3<f64>> = fabric.positions().iter().map(cast).collect();
+        let (far, near) = (model.contacts[0], model.contacts[n - 1]);
+        let unit = |c: ContactRest<f64>, x: &[V3<f64>]| (x[c.b as usize] - x[c.a as usize]).normalize();
+        let (out, inward) = (unit(far, &positions) * 3.0, unit(near, &positions) * 0.2);
+        positions[far.b as usize] += out;
+        positions[near.b as usize] -= inward;
+        let length = |c: ContactRest<f64>, x: &[V3<f64>]| (x[c.b as usize] - x[c.a as usize]).norm();
+
+        assert!(!model.revives(&vec![true; n]), "nothing was released");
+        model.set_contacts_alive(&vec![false; n], &[]).unwrap();
+        assert!(model.revives(&vec![true; n]));
+        assert!(model.set_contacts_alive(&vec![true; n], &positions[1..]).is_err(), "short positions accepted");
+        model.set_contacts_alive(&vec![true; n], &positions).unwrap();
+        let reseated: Vec<u32> = model.reseating().iter().map(|r| r.contact).collect();
+        assert!(reseated.contains(&0) && reseated.contains(&(n as u32 - 1)), "{reseated:?}");
+        assert!((model.contacts[0].rest - length(far, &positions)).abs() < 1e-12);
+        assert!((model.contacts[n - 1].rest - length(near, &positions)).abs() < 1e-12);
+
+        let step = model.reseat_step();
+        let (open, mut heard) = (model.reseating().len(), 0);
+        assert_eq!(model.close_reseats(1, |_, _| heard += 1), 1);
+        assert_eq!(heard, open, "not every re-seated contact was reported");
+        assert!((model.contacts[n - 1].rest - (length(near, &positions) + step)).abs() < 1e-12);
+        assert!((model.contacts[0].rest - (length(far, &positions) - step)).abs() < 1e-12);
+        let needed = ((length(far, &positions) - knit[0]) / step).ceil() as u64;
+        let open = model.close_reseats(10 * needed, |_, _| ());
+        assert!(open + 1 >= needed - 1 && open < needed + 1, "closed in {open} more substeps, expected about {needed}");
+        assert!(model.reseating().is_empty());
+        assert_eq!(model.contacts.iter().map(|c| c.rest).collect::<Vec<_>>(), knit, "not back at d_c");
+
+        model.set_contacts_alive(&vec![false; n], &[]).unwrap();
+        model.set_contacts_alive(&vec![true; n], &positions).unwrap();
+        let saved = model.save_reseats();
+        model.close_reseats(3, |_, _| ());
+        model.restore_reseats(&saved);
+        assert!((model.contacts[0].rest - length(far, &positions)).abs() < 1e-12, "restore did not put it back");
+        let mut killed = vec![true; n];
+        killed[0] = false;
+        model.set_contacts_alive(&killed, &positions).unwrap();
+        assert_eq!(model.contacts[0].rest, knit[0], "a released contact kept its re-seated rest");
+        assert!(model.reseating().iter().all(|r| r.contact != 0));
+    }
 }

@@ -46,6 +46,7 @@ impl<B: Backend> Simulation<B> {
     /// Whatever the backend reports.
     pub fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
         self.backend.advance(substeps)?;
+        self.scene.close_reseats(substeps, |_, _| ());
         self.substeps += substeps;
         Ok(())
     }
@@ -85,13 +86,20 @@ impl<B: Backend> Simulation<B> {
         self.backend.set_pins(pins)
     }
 
-    /// Set the liveness of every contact.
+    /// Set the liveness of every contact. A contact revived farther apart
+    /// than its rest separation is re-seated and closes back
+    /// ([`crate::Reseat`]).
     ///
     /// # Errors
-    /// [`BackendError::LengthMismatch`]; nothing changes then.
+    /// [`BackendError::LengthMismatch`]; nothing changes then. Whatever the
+    /// backend reports when reading the state.
     pub fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
-        self.scene.set_contacts_alive(alive)?;
-        self.backend.set_contacts_alive(alive)
+        let positions = self.backend.state()?.cast::<f64>().positions;
+        let mut scene = self.scene.clone();
+        scene.set_contacts_alive(alive, &positions)?;
+        self.backend.set_contacts_alive(alive)?;
+        self.scene = scene;
+        Ok(())
     }
 
     /// Overwrite positions and velocities.

@@ -192,7 +192,7 @@ mod tests {
     #[allow(clippy::needless_range_loop, reason = "node and axis indices name the degree of freedom")]
     fn check_gradient(fabric: &Fabric, params: &Params, state: &State<f64>, alive: &[bool]) {
         let mut model = Model::<f64>::new(fabric, params).unwrap();
-        model.set_contacts_alive(alive).unwrap();
+        model.set_contacts_alive(alive, &state.positions).unwrap();
         let mut forces = Vec::new();
         accumulate_forces(&model, &state.positions, &mut forces);
         let scale = state.positions.iter().map(|p| p.amax()).fold(1.0, f64::max);
@@ -352,7 +352,7 @@ mod tests {
         let k = model.contacts[0];
         stretched.positions[k.b as usize] += V3::new(0.0, 1.0, 0.0);
         accumulate_forces(&model, &stretched.positions, &mut forces_alive);
-        model.set_contacts_alive(&[false, true, true, true]).unwrap();
+        model.set_contacts_alive(&[false, true, true, true], &stretched.positions).unwrap();
         accumulate_forces(&model, &stretched.positions, &mut forces_dead);
         let removed = forces_alive[k.a as usize] - forces_dead[k.a as usize];
         let expected = spring_force(
