@@ -94,7 +94,18 @@ pub struct Wgpu {
     gpu: Arc<Gpu>,
     mode: Mode,
     fuse_below: usize,
+    checkpoint_every: u64,
     loaded: Option<Loaded>,
+}
+
+/// A state the CPU side holds, and the substep it belongs to: what is left
+/// to read when the device is lost ([`Wgpu::last_good_state`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Checkpoint {
+    /// Substeps since load.
+    pub substeps: u64,
+    /// Positions and velocities then.
+    pub state: State<f32>,
 }
 
 impl Wgpu {
@@ -109,7 +120,24 @@ impl Wgpu {
     /// A backend on a shared GPU context: building one compiles every
     /// pipeline, so share it between backends.
     pub fn with_gpu(gpu: Arc<Gpu>, mode: Mode) -> Self {
-        Self { gpu, mode, fuse_below: FUSE_BELOW, loaded: None }
+        Self { gpu, mode, fuse_below: FUSE_BELOW, checkpoint_every: 0, loaded: None }
+    }
+
+    /// Also copy the state back to the CPU at the end of an
+    /// [`Backend::advance`] once `substeps` have passed since the last copy
+    /// (0, the default, never does: the state is then copied only when
+    /// loaded, written or read). Each copy is a read-back, so the cost is
+    /// one round trip per `substeps`.
+    pub fn set_checkpoint_every(&mut self, substeps: u64) {
+        self.checkpoint_every = substeps;
+    }
+
+    /// The newest state the CPU side holds: the one loaded, written or read
+    /// last, or copied by [`Wgpu::set_checkpoint_every`]. It stays readable
+    /// when the device is lost and the GPU's copy with it. `None` before
+    /// load.
+    pub fn last_good_state(&self) -> Option<&Checkpoint> {
+        self.loaded.as_ref().map(|l| &l.checkpoint)
     }
 
     /// Fuse gather mode's substep with friction into one dispatch only
@@ -229,6 +257,8 @@ struct Loaded {
     px: usize,
     pv: usize,
     substeps: u64,
+    /// The newest state copied to the CPU.
+    checkpoint: Checkpoint,
 }
 
 #[derive(Debug)]
@@ -661,7 +691,8 @@ impl Backend for Wgpu {
             }),
         };
         let groups = self.bind_all(&buffers);
-        let mut loaded = Loaded { model, buffers, groups, px: 0, pv: 0, substeps: 0 };
+        let checkpoint = Checkpoint { substeps: 0, state };
+        let mut loaded = Loaded { model, buffers, groups, px: 0, pv: 0, substeps: 0, checkpoint };
         self.upload_pins(&mut loaded);
         self.loaded = Some(loaded);
         self.finish()
@@ -708,14 +739,21 @@ impl Backend for Wgpu {
         let queue = &self.gpu.queue;
         queue.write_buffer(&loaded.buffers.x[loaded.px], 0, bytemuck::cast_slice(&vec4s(&state.positions)));
         queue.write_buffer(&loaded.buffers.v[loaded.pv], 0, bytemuck::cast_slice(&vec4s(&state.velocities)));
+        let substeps = loaded.substeps;
+        self.loaded()?.checkpoint = Checkpoint { substeps, state: state.clone() };
         Ok(())
     }
 
+    /// As the trait says; the state read is also kept as the
+    /// [`Wgpu::last_good_state`].
     fn read_state(&mut self, state: &mut State<f32>) -> Result<(), BackendError> {
         let loaded = self.loaded.as_ref().ok_or(BackendError::NotLoaded)?;
         let n = loaded.model.node_count();
         self.read_vectors(&loaded.buffers.x[loaded.px], n, &mut state.positions)?;
-        self.read_vectors(&loaded.buffers.v[loaded.pv], n, &mut state.velocities)
+        self.read_vectors(&loaded.buffers.v[loaded.pv], n, &mut state.velocities)?;
+        let substeps = loaded.substeps;
+        self.loaded()?.checkpoint = Checkpoint { substeps, state: state.clone() };
+        Ok(())
     }
 
     fn compute_forces(&mut self, forces: &mut Vec<V3<f32>>) -> Result<(), BackendError> {
@@ -751,7 +789,13 @@ impl Backend for Wgpu {
     fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
         let mut loaded = self.loaded.take().ok_or(BackendError::NotLoaded)?;
         let result = self.advance_loaded(&mut loaded, substeps);
+        let due = self.checkpoint_every > 0
+            && loaded.substeps.saturating_sub(loaded.checkpoint.substeps) >= self.checkpoint_every;
         self.loaded = Some(loaded);
-        result
+        result?;
+        if due {
+            self.state()?;
+        }
+        Ok(())
     }
 }

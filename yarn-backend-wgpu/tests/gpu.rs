@@ -132,19 +132,30 @@ fn divergence_is_reported_and_the_state_kept() {
 }
 
 /// A device lost in the middle of a run comes back as an error from the
-/// next call, not a hang or a panic.
+/// next call, not a hang or a panic, and the last state copied to the CPU
+/// (here by a checkpoint every 20 substeps) is still readable.
 #[test]
-fn a_lost_device_is_an_error() {
+fn a_lost_device_is_an_error_and_the_last_good_state_stays() {
     // A context of its own: the loss must not touch the shared one.
     let Some(_) = gpu() else { return };
     let gpu = Gpu::new().expect("a second context");
     let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
-    backend.load(&patch(), &Params::default()).unwrap();
+    let fabric = patch();
+    backend.load(&fabric, &Params::default()).unwrap();
+    assert_eq!(backend.last_good_state().unwrap().state, State::at_rest(&fabric), "load is the first checkpoint");
+    backend.set_checkpoint_every(20);
     backend.advance(10).unwrap();
+    assert_eq!(backend.last_good_state().unwrap().substeps, 0, "checkpointed before 20 substeps");
+    backend.advance(15).unwrap();
+    let checkpoint = backend.last_good_state().unwrap().clone();
+    assert_eq!(checkpoint.substeps, 25);
+    assert_eq!(checkpoint.state, backend.state().unwrap(), "the checkpoint is not the GPU's state");
+    backend.advance(5).unwrap();
     gpu.device().destroy();
     match backend.advance(10) {
         Err(BackendError::Device(message)) => assert!(!message.is_empty()),
         other => panic!("expected a device error, got {other:?}"),
     }
     assert!(matches!(backend.state(), Err(BackendError::Device(_))));
+    assert_eq!(backend.last_good_state(), Some(&checkpoint), "the last good state was lost with the device");
 }

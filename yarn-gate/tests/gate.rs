@@ -135,6 +135,30 @@ fn cli_gpucheck_passes_and_reports_every_mode() {
     assert!(output.status.success());
 }
 
+/// A short soak on the GPU, both modes (the long one is `stress --soak
+/// 1000000`): random grabs, releases, re-knitting and parameter changes
+/// end finite with bounded energy. Skips, loudly, only when there is no
+/// adapter and `CI` is unset.
+#[test]
+fn cli_gpu_soak_ends_finite_with_bounded_energy() {
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
+        .args(["stress", "--soak", "3000", "--backend", "wgpu-gather,wgpu-fixed", "--json"])
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let reports: Vec<serde_json::Value> = serde_json::from_slice(&output.stdout).unwrap();
+    if reports.is_empty() && std::env::var_os("CI").is_none() {
+        eprintln!("SKIPPING the GPU soak: {}", String::from_utf8_lossy(&output.stderr));
+        return;
+    }
+    assert_eq!(reports.len(), 2, "{reports:?}");
+    for r in &reports {
+        assert_eq!(r["substeps"], 3000, "{r}");
+        assert_eq!(r["finite"], true, "{r}");
+        assert!(r["max_energy"].as_f64().is_some_and(|e| e.is_finite() && e < 1e5), "{r}");
+    }
+}
+
 /// With no usable adapter, the error says so and says what to install.
 #[test]
 fn cli_without_an_adapter_says_what_to_install() {
