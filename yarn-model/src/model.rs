@@ -3,7 +3,7 @@
 //! liveness. Backends build one on load and keep it current; the state
 //! (positions and velocities) is kept apart in [`State`].
 
-use yarn_topology::{Fabric, Pin};
+use yarn_topology::{Fabric, Pin, available_memory, check_memory};
 
 use crate::real::{cast, widen};
 use crate::{BackendError, Params, Real, V3};
@@ -67,6 +67,13 @@ pub struct ContactRest<T> {
     pub rest: T,
 }
 
+/// Scalars a backend holds per node, counted generously: the model's rest
+/// tables, the state, its next and saved copies, and a copy read out.
+const SCALARS_PER_NODE: u64 = 32;
+
+/// Scalars a backend holds per contact, besides its two node indices.
+const SCALARS_PER_CONTACT: u64 = 12;
+
 /// How far, in mean segment lengths, a node may travel in one substep
 /// before it counts as diverged ([`Model::divergence_speed`]).
 pub const DIVERGENCE_REACH: f64 = 10.0;
@@ -121,10 +128,16 @@ impl<T: Real> Model<T> {
     /// contact alive.
     ///
     /// # Errors
-    /// [`BackendError::Params`] if the parameters do not validate.
+    /// [`BackendError::Params`] if the parameters do not validate;
+    /// [`BackendError::Topology`] with `OutOfMemory` if a backend's arrays
+    /// for this fabric would not fit the memory the system has free.
     pub fn new(fabric: &Fabric, params: &Params) -> Result<Self, BackendError> {
         params.validate()?;
         let nodes = fabric.node_count();
+        let scalar = size_of::<T>() as u64;
+        let needed = nodes as u64 * SCALARS_PER_NODE * scalar
+            + fabric.contacts().len() as u64 * (8 + SCALARS_PER_CONTACT * scalar);
+        check_memory("the simulation's arrays (bytes)", needed, available_memory())?;
         // Springs are (i, i+1) and triples centre on i+1, in order, so the
         // tables need no index columns.
         debug_assert!(fabric.springs().iter().enumerate().all(|(i, s)| s.a as usize == i));

@@ -48,6 +48,18 @@ pub enum TopologyError {
     /// User parts with no nodes at all.
     #[error("a fabric needs at least one node")]
     NoNodes,
+    /// More memory than the system has free.
+    #[error(
+        "{what} needs {needed} bytes but only {available} are available (MemAvailable in /proc/meminfo); use a smaller fabric or free memory"
+    )]
+    OutOfMemory {
+        /// What would not fit.
+        what: &'static str,
+        /// Bytes it needs.
+        needed: u64,
+        /// Bytes the system can give.
+        available: u64,
+    },
     /// More nodes than backends can index.
     #[error("{nodes} nodes given; a fabric holds at most {max_nodes}")]
     TooManyNodes {

@@ -11,7 +11,15 @@
 use std::f64::consts::PI;
 
 use crate::fabric::{Boundary, FabricParts, Side};
-use crate::{Chart, Fabric, StitchKind, TopologyError, Vec3};
+use crate::{Chart, Contact, Fabric, Spring, StitchKind, TopologyError, Triple, Vec3, available_memory, check_memory};
+
+/// What building a fabric holds per node at most: positions and boundary
+/// flags in the parts and again in the fabric, a spring, a triple and (at
+/// a quarter contact per node) room for a contact.
+const FABRIC_BYTES_PER_NODE: u64 = (2 * (size_of::<Vec3>() + size_of::<Boundary>())
+    + size_of::<Spring>()
+    + size_of::<Triple>()
+    + size_of::<Contact>()) as u64;
 
 /// Nodes per loop.
 pub const SEG: usize = 8;
@@ -89,6 +97,7 @@ impl Fabric {
     pub fn from_chart(chart: &Chart, geometry: &Geometry) -> Result<Self, TopologyError> {
         geometry.validate()?;
         let (w, h) = (chart.width(), chart.height());
+        check_memory("the fabric (bytes)", (w * h * SEG) as u64 * FABRIC_BYTES_PER_NODE, available_memory())?;
         let mut positions = Vec::with_capacity(w * h * SEG);
         let mut boundary = Vec::with_capacity(w * h * SEG);
         for row in 0..h {
