@@ -1,5 +1,5 @@
 //! Runnable examples of yarnify live beside this file, one folder each:
-//! `serial/`, `rayon/`, `wgpu/`, `render/` and `drape/`. Run one with
+//! `serial/`, `rayon/`, `wgpu/`, `render/`, `drape/` and `statics/`. Run one with
 //! `cargo run --release --example NAME`.
 //!
 //! This library holds what they share.

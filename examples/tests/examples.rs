@@ -83,3 +83,17 @@ fn drape_pins_a_row_and_writes_an_obj() {
     assert_eq!(mesh.lines().filter(|l| l.starts_with("v ")).count(), 2560 * 7);
     std::fs::remove_file(path).unwrap();
 }
+
+/// Both problems print a dynamics row and three statics rows, and the last
+/// solve gets at least as low as the dynamics did.
+#[test]
+fn statics_gets_as_low_as_the_dynamics() {
+    let out = stdout(&run("statics", &[]));
+    let energy = |line: &str| -> f64 { line[46..].split_whitespace().nth(1).unwrap().parse().unwrap() };
+    for problem in ["4x4 hung", "16x16 free"] {
+        let rows: Vec<&str> = out.lines().filter(|l| l.starts_with(problem)).collect();
+        assert_eq!(rows.len(), 4, "{out}");
+        assert!(rows[0].contains("dynamics") && rows[3].contains("to that energy"), "{out}");
+        assert!(energy(rows[3]) <= energy(rows[0]), "{out}");
+    }
+}

@@ -8,10 +8,11 @@ use yarn_backend_cpu::{Rayon, Reference, Serial};
 use yarn_backend_wgpu::{Gpu, Mode, Wgpu};
 use yarn_gate::GateError;
 use yarn_gate::bench::{BenchConfig, bench, table};
-use yarn_gate::check::{CheckConfig, CheckReport, run_check};
+use yarn_gate::check::{CheckConfig, CheckReport, run_check, run_static_check};
 use yarn_gate::gpucheck::run_gpucheck;
 use yarn_gate::pareto;
 use yarn_gate::plotdata as plot;
+use yarn_model::statics::StaticOptions;
 use yarn_model::{Backend, Params, widen};
 use yarn_render::{Renderer, View, tube_obj};
 use yarn_topology::{Chart, Fabric, Geometry};
@@ -223,6 +224,12 @@ struct CheckArgs {
     /// Rest-curl fraction κ; 1 gives a patch that should read flat.
     #[arg(long)]
     rest_curl: Option<f64>,
+    /// How to bring the patch to rest: `dynamic` (the damped dynamics for
+    /// --steps substeps on --backend), or `static` (an energy minimum by a
+    /// quasi-static solve in f64, no friction; --steps and --backend are
+    /// not used).
+    #[arg(long, default_value = "dynamic", value_parser = ["dynamic", "static"])]
+    solver: String,
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
@@ -297,7 +304,11 @@ fn check(args: &CheckArgs) -> Result<CheckReport, GateError> {
         bar.set_length(total);
         bar.set_position(done);
     };
-    let report = with_backend!(args.backend.as_str(), 0, backend => run_check(backend, &config, &mut progress));
+    let report = if args.solver == "static" {
+        run_static_check(&config, &StaticOptions::default(), &mut progress)
+    } else {
+        with_backend!(args.backend.as_str(), 0, backend => run_check(backend, &config, &mut progress))
+    };
     bar.finish_and_clear();
     report
 }

@@ -4,6 +4,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
+use yarn_model::statics::{self, StaticOptions};
 use yarn_model::{Backend, BackendError, Energy, Model, State, step, widen};
 use yarn_topology::{Fabric, Pin, Side};
 
@@ -196,6 +197,50 @@ pub fn stiffness<B: Backend>(
     steps: u64,
     mut progress: impl FnMut(u64),
 ) -> Result<Stiffness, BackendError> {
+    let mut offset = 0;
+    probe(fabric, relaxed, axis, strain, |pins, pulled| {
+        backend.set_pins(pins)?;
+        backend.write_state(&pulled.cast())?;
+        advance_in_chunks(backend, steps, |done| progress(offset + done))?;
+        offset += steps;
+        let forces = backend.forces()?.iter().map(widen).collect();
+        Ok((forces, backend.state()?.max_speed()))
+    })
+}
+
+/// [`stiffness`] with each hold brought to rest by a quasi-static solve
+/// ([`yarn_model::statics`]) on `model` (its pins are replaced by the
+/// grips'): the readings of an equilibrium, with no baseline left but the
+/// solve's residual. Friction plays no part.
+pub fn static_stiffness(
+    model: &Model<f64>,
+    fabric: &Fabric,
+    relaxed: &State<f64>,
+    axis: Axis,
+    strain: f64,
+    options: &StaticOptions,
+) -> Result<Stiffness, BackendError> {
+    let mut model = model.clone();
+    probe(fabric, relaxed, axis, strain, |pins, pulled| {
+        model.set_pins(pins)?;
+        let mut state = pulled.clone();
+        statics::solve(&model, &mut state, options);
+        let mut forces = Vec::new();
+        step::accumulate_forces(&model, &state.positions, &mut forces);
+        Ok((forces, 0.0))
+    })
+}
+
+/// The probe both kinds of hold share: grip, pull, `hold` (given the grips'
+/// pins and the pulled state, the force on every node at rest and the
+/// largest speed left), read the far grip, at zero strain and at `strain`.
+fn probe(
+    fabric: &Fabric,
+    relaxed: &State<f64>,
+    axis: Axis,
+    strain: f64,
+    mut settle: impl FnMut(&[Pin], &State<f64>) -> Result<(Vec<Vector3<f64>>, f64), BackendError>,
+) -> Result<Stiffness, BackendError> {
     let (near, far) = axis.grips();
     let (near_nodes, far_nodes) = (fabric.side_nodes(near), fabric.side_nodes(far));
     let direction = axis.direction(fabric);
@@ -203,7 +248,7 @@ pub fn stiffness<B: Backend>(
     // by `strain` times their separation.
     let origin = near_nodes.iter().map(|&i| relaxed.positions[i as usize].dot(&direction)).sum::<f64>()
         / near_nodes.len() as f64;
-    let mut hold = |strain: f64, offset: u64| -> Result<(Vector3<f64>, f64), BackendError> {
+    let mut hold = |strain: f64| -> Result<(Vector3<f64>, f64), BackendError> {
         let pulled = State::<f64> {
             positions: relaxed
                 .positions
@@ -217,15 +262,11 @@ pub fn stiffness<B: Backend>(
             .chain(&far_nodes)
             .map(|&node| Pin { node, target: pulled.positions[node as usize] })
             .collect();
-        backend.set_pins(&pins)?;
-        backend.write_state(&pulled.cast())?;
-        advance_in_chunks(backend, steps, |done| progress(offset + done))?;
-        let forces = backend.forces()?;
-        let on_far = far_nodes.iter().map(|&i| widen(&forces[i as usize])).sum();
-        Ok((on_far, backend.state()?.max_speed()))
+        let (forces, speed) = settle(&pins, &pulled)?;
+        Ok((far_nodes.iter().map(|&i| forces[i as usize]).sum(), speed))
     };
-    let (unstrained, _) = hold(0.0, 0)?;
-    let (strained, residual_speed) = hold(strain, steps)?;
+    let (unstrained, _) = hold(0.0)?;
+    let (strained, residual_speed) = hold(strain)?;
     let force = (strained - unstrained).norm();
     Ok(Stiffness { axis, strain, force, baseline: unstrained.norm(), stiffness: force / strain, residual_speed })
 }

@@ -45,6 +45,7 @@ fn cli_json_has_the_documented_keys_and_exit_code_follows_pass() {
         .unwrap();
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("stdout is one JSON object");
     for key in [
+        "solver",
         "nodes",
         "contacts",
         "steps",
@@ -63,6 +64,26 @@ fn cli_json_has_the_documented_keys_and_exit_code_follows_pass() {
     assert_eq!(json["nodes"], 160);
     assert_eq!(json["contacts"], 30);
     assert_eq!(json["steps"], 600);
+    assert_eq!(json["solver"], "dynamic");
+    assert_eq!(output.status.success(), json["pass"].as_bool().unwrap());
+}
+
+/// `--solver static` brings the patch to rest by minimising its energy:
+/// the report says so, counts force evaluations in `steps`, and judges the
+/// residual force instead of a speed.
+#[test]
+fn cli_static_check_reports_its_solver_and_residual() {
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
+        .args(["check", "--size", "5x4", "--solver", "static", "--json"])
+        .output()
+        .unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("stdout is one JSON object");
+    assert_eq!(json["solver"], "static");
+    let evaluations = json["steps"].as_u64().unwrap();
+    assert!(evaluations > 10 && evaluations <= 5_000, "{evaluations}");
+    assert!(json["energy_final"].as_f64().unwrap() < json["energy_initial"].as_f64().unwrap());
+    let names: Vec<&str> = json["criteria"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
+    assert!(names.contains(&"forces vanish") && !names.contains(&"patch settles"), "{names:?}");
     assert_eq!(output.status.success(), json["pass"].as_bool().unwrap());
 }
 

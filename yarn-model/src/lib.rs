@@ -32,6 +32,7 @@ mod model;
 mod params;
 mod real;
 mod simulation;
+pub mod statics;
 pub mod step;
 pub mod terms;
 

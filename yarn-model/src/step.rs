@@ -71,7 +71,16 @@ pub fn accumulate_forces<T: Real>(model: &Model<T>, x: &[V3<T>], forces: &mut Ve
 /// The energy of `state`, by term, evaluated in `T` and reported in `f64`.
 pub fn energy<T: Real>(model: &Model<T>, state: &State<T>) -> Energy {
     let c = &model.coeffs;
-    let x = &state.positions;
+    let sum = |values: &mut dyn Iterator<Item = T>| values.map(Real::to_f64).sum::<f64>();
+    Energy {
+        kinetic: 0.5 * c.mass.to_f64() * sum(&mut state.velocities.iter().map(|v| v.norm_squared())),
+        ..potential(model, &state.positions)
+    }
+}
+
+/// The potential terms of [`energy`] at positions `x` (kinetic zero).
+pub fn potential<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Energy {
+    let c = &model.coeffs;
     let sum = |values: &mut dyn Iterator<Item = T>| values.map(Real::to_f64).sum::<f64>();
     Energy {
         stretch: sum(&mut model
@@ -91,7 +100,7 @@ pub fn energy<T: Real>(model: &Model<T>, state: &State<T>) -> Energy {
             .filter(|(_, alive)| **alive)
             .map(|(k, _)| spring_energy(&x[k.a as usize], &x[k.b as usize], k.rest, c.contact))),
         gravity: sum(&mut x.iter().map(|p| gravity_energy(p, c.mass, c.gravity))),
-        kinetic: 0.5 * c.mass.to_f64() * sum(&mut state.velocities.iter().map(|v| v.norm_squared())),
+        kinetic: 0.0,
     }
 }
 
