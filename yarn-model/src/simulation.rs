@@ -86,15 +86,15 @@ impl<B: Backend> Simulation<B> {
         self.backend.set_pins(pins)
     }
 
-    /// Set the liveness of every contact. A contact revived farther apart
-    /// than its rest separation is re-seated and closes back
-    /// ([`crate::Reseat`]).
+    /// Set the liveness of every contact. A contact revived away from its
+    /// rest separation is re-seated and moves back ([`crate::Reseat`]).
     ///
     /// # Errors
     /// [`BackendError::LengthMismatch`]; nothing changes then. Whatever the
     /// backend reports when reading the state.
     pub fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
-        let positions = self.backend.state()?.cast::<f64>().positions;
+        let positions =
+            if self.scene.revives(alive) { self.backend.state()?.cast::<f64>().positions } else { Vec::new() };
         let mut scene = self.scene.clone();
         scene.set_contacts_alive(alive, &positions)?;
         self.backend.set_contacts_alive(alive)?;
