@@ -468,7 +468,7 @@ impl Wgpu {
             }),
             pins: table(&|px, pv| self.bind(&k.pins.layout, "pins", &[&b.params, &x[px], &v[pv], &b.pins])),
             check: table(&|px, pv| self.bind(&k.check.layout, "check", &[&b.params, &x[px], &v[pv], &b.status])),
-            reseat: self.bind(&k.reseat.layout, "reseat", &[&b.params, &b.contacts, &b.incident, &b.reseats]),
+            reseat: self.bind_reseat(b),
             fused: table(&|px, pv| {
                 let buffers = [&b.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &b.chain, &b.start, &b.incident];
                 self.bind(&k.fused.layout, "fused", &buffers)
@@ -486,8 +486,12 @@ impl Wgpu {
         self.write_params(l);
     }
 
+    fn bind_reseat(&self, b: &Buffers) -> wgpu::BindGroup {
+        self.bind(&self.gpu.kernels.reseat.layout, "reseat", &[&b.params, &b.contacts, &b.incident, &b.reseats])
+    }
+
     /// Upload the model's contact records, per-node lists and re-seated
-    /// contacts, and rebind.
+    /// contacts, and rebind the reseat pass to its new buffer.
     fn upload_contacts(&self, l: &mut Loaded) {
         let queue = &self.gpu.queue;
         queue.write_buffer(&l.buffers.contacts, 0, bytemuck::cast_slice(&gpu_contacts(&l.model)));
@@ -500,7 +504,7 @@ impl Wgpu {
         }
         l.buffers.reseat_count = reseats.len() as u32;
         l.buffers.reseats = storage(&self.gpu.device, "reseats", &reseats);
-        l.groups = self.bind_all(&l.buffers);
+        l.groups.reseat = self.bind_reseat(&l.buffers);
         self.write_params(l);
     }
 
