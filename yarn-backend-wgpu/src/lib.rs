@@ -15,7 +15,8 @@
 //!   An overflow is detected and reported, and the state put back as it was
 //!   before the failing call; nothing wraps silently.
 //!
-//! Pins take one more dispatch when there are any (`pins.wgsl`).
+//! Pins take one more dispatch when there are any (`pins.wgsl`), and
+//! re-seated contacts one more while any is closing (`reseat.wgsl`).
 //! [`Backend::advance`] records all `n` substeps into one submission and
 //! reads nothing back; state is copied back only when asked. It waits for
 //! the GPU to finish, so errors and timings belong to the call that caused
