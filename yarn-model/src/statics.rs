@@ -6,8 +6,8 @@
 //! The method is L-BFGS whose initial inverse Hessian is a fixed
 //! preconditioner: the fabric's springs and bends as one stiffness matrix
 //! per coordinate (k_s along the yarn, k_c across each alive contact, about
-//! k_b/ℓ² per bending joint on the second difference), factorised once as
-//! a band. The stiff stretch and contact modes, which hold the explicit
+//! k_b/ℓ² per bending joint on the second difference), factorised once
+//! within its profile. The stiff stretch and contact modes, which hold the explicit
 //! step to a small h, are then solved exactly each iteration, and L-BFGS
 //! learns the soft rest.
 //!
@@ -71,79 +71,82 @@ pub struct StaticReport {
     pub converged: bool,
 }
 
-/// A symmetric positive definite band matrix, factorised in place as
-/// L Lᵀ. Row i holds columns i − band..=i.
+/// A symmetric positive definite matrix stored by its profile (row i holds
+/// columns `first[i]..=i`) and factorised in place as L Lᵀ, whose fill
+/// stays inside the same profile.
 #[derive(Debug, Clone)]
-struct Band {
-    n: usize,
-    band: usize,
+struct Profile {
+    first: Vec<usize>,
+    /// Where each row starts in `entries`.
+    offset: Vec<usize>,
     entries: Vec<f64>,
 }
 
-impl Band {
-    fn new(n: usize, band: usize) -> Self {
-        Self { n, band, entries: vec![0.0; n * (band + 1)] }
-    }
-
-    fn index(&self, i: usize, j: usize) -> usize {
-        let (i, j) = if i >= j { (i, j) } else { (j, i) };
-        i * (self.band + 1) + self.band - (i - j)
-    }
-
-    fn add(&mut self, i: usize, j: usize, value: f64) {
-        let k = self.index(i, j);
-        self.entries[k] += value;
-    }
-
-    /// Entry (i, j) gains `value`, unless it couples a pinned node: a pinned
-    /// node's row and column stay empty but for the diagonal set later.
-    fn add_free(&mut self, pinned: &[bool], i: usize, j: usize, value: f64) {
-        if !pinned[i] && !pinned[j] {
-            self.add(i, j, value);
+impl Profile {
+    /// The matrix with these entries (i, j, value), repeats summed; each
+    /// pair is given once, either way round.
+    fn new(n: usize, triplets: &[(usize, usize, f64)]) -> Self {
+        let mut first: Vec<usize> = (0..n).collect();
+        for &(i, j, _) in triplets {
+            let (i, j) = (i.max(j), i.min(j));
+            first[i] = first[i].min(j);
         }
+        let mut offset = Vec::with_capacity(n + 1);
+        offset.push(0);
+        for (i, &f) in first.iter().enumerate() {
+            offset.push(offset[i] + i - f + 1);
+        }
+        let mut p = Self { first, entries: vec![0.0; offset[n]], offset };
+        for &(i, j, value) in triplets {
+            let (i, j) = (i.max(j), i.min(j));
+            let at = p.offset[i] + j - p.first[i];
+            p.entries[at] += value;
+        }
+        p
+    }
+
+    /// Row i from column `first[i]` to the diagonal.
+    fn row(&self, i: usize) -> &[f64] {
+        &self.entries[self.offset[i]..self.offset[i + 1]]
     }
 
     /// Cholesky in place; false if a pivot is not positive.
     fn factorise(&mut self) -> bool {
-        for i in 0..self.n {
-            let lo = i.saturating_sub(self.band);
-            for j in lo..=i {
-                let mut sum = self.entries[self.index(i, j)];
-                for k in j.saturating_sub(self.band).max(lo)..j {
-                    sum -= self.entries[self.index(i, k)] * self.entries[self.index(j, k)];
-                }
-                let at = self.index(i, j);
+        for i in 0..self.first.len() {
+            for j in self.first[i]..=i {
+                let lo = self.first[i].max(self.first[j]);
+                let (row_i, row_j) = (self.row(i), self.row(j));
+                let dot: f64 = row_i[lo - self.first[i]..j - self.first[i]]
+                    .iter()
+                    .zip(&row_j[lo - self.first[j]..j - self.first[j]])
+                    .map(|(a, b)| a * b)
+                    .sum();
+                let at = self.offset[i] + j - self.first[i];
+                let sum = self.entries[at] - dot;
                 if i == j {
                     if sum <= 0.0 {
                         return false;
                     }
                     self.entries[at] = sum.sqrt();
                 } else {
-                    self.entries[at] = sum / self.entries[self.index(j, j)];
+                    self.entries[at] = sum / self.entries[self.offset[j + 1] - 1];
                 }
             }
         }
         true
     }
 
-    /// Row i of L from column `lo`: (lo, the entries lo..=i).
-    fn row(&self, i: usize) -> (usize, &[f64]) {
-        let lo = i.saturating_sub(self.band);
-        let end = (i + 1) * (self.band + 1);
-        (lo, &self.entries[end - (i - lo + 1)..end])
-    }
-
     /// Solve L Lᵀ x = b in place, each coordinate alike, a row of L at a
     /// time in both sweeps.
     fn solve(&self, b: &mut [V3<f64>]) {
-        for i in 0..self.n {
-            let (lo, row) = self.row(i);
+        for i in 0..self.first.len() {
+            let (lo, row) = (self.first[i], self.row(i));
             let (off, diagonal) = row.split_at(i - lo);
             let sum = off.iter().zip(&b[lo..i]).fold(b[i], |sum, (l, x)| sum - x * *l);
             b[i] = sum / diagonal[0];
         }
-        for i in (0..self.n).rev() {
-            let (lo, row) = self.row(i);
+        for i in (0..self.first.len()).rev() {
+            let (lo, row) = (self.first[i], self.row(i));
             let (off, diagonal) = row.split_at(i - lo);
             let x = b[i] / diagonal[0];
             b[i] = x;
@@ -156,22 +159,26 @@ impl Band {
 /// as one stiffness per node pair, shared by x, y and z; a pinned node
 /// decoupled (its row the identity). `None` if it is not positive
 /// definite, which the solve then does without.
-fn preconditioner(model: &Model<f64>, pinned: &[bool]) -> Option<Band> {
-    let n = model.node_count();
-    let live = || model.contacts.iter().zip(&model.alive).filter(|(_, alive)| **alive).map(|(c, _)| c);
-    let band = live().map(|c| c.a.abs_diff(c.b) as usize).fold(2, usize::max);
-    let mut p = Band::new(n, band);
+fn preconditioner(model: &Model<f64>, pinned: &[bool]) -> Option<Profile> {
     let c = &model.coeffs;
-    let spring = |p: &mut Band, i: usize, j: usize, k: f64| {
-        p.add_free(pinned, i, i, k);
-        p.add_free(pinned, j, j, k);
-        p.add_free(pinned, i, j, -k);
+    let mut triplets = Vec::new();
+    // Entry (i, j) gains `value`, unless it couples a pinned node: a pinned
+    // node's row and column stay empty but for its diagonal.
+    let mut add = |i: usize, j: usize, value: f64| {
+        if !pinned[i] && !pinned[j] {
+            triplets.push((i, j, value));
+        }
+    };
+    let mut spring = |i: usize, j: usize, k: f64| {
+        add(i, i, k);
+        add(j, j, k);
+        add(i, j, -k);
     };
     for i in 0..model.spring_rest.len() {
-        spring(&mut p, i, i + 1, c.stretch);
+        spring(i, i + 1, c.stretch);
     }
-    for contact in live() {
-        spring(&mut p, contact.a as usize, contact.b as usize, c.contact);
+    for (contact, _) in model.contacts.iter().zip(&model.alive).filter(|(_, alive)| **alive) {
+        spring(contact.a as usize, contact.b as usize, c.contact);
     }
     // A bend resists the second difference x_i − 2 x_{i+1} + x_{i+2} with a
     // stiffness of about k_b / ℓ².
@@ -181,16 +188,15 @@ fn preconditioner(model: &Model<f64>, pinned: &[bool]) -> Option<Band> {
         let d = [1.0, -2.0, 1.0];
         for a in 0..3 {
             for b in 0..=a {
-                p.add_free(pinned, i + a, i + b, k * d[a] * d[b]);
+                add(i + a, i + b, k * d[a] * d[b]);
             }
         }
     }
     // A free fabric moves rigidly at no cost: a small diagonal pins that
     // down without touching the stiff modes.
     let floor = 1e-6 * c.stretch.max(c.contact);
-    for (i, &pinned) in pinned.iter().enumerate() {
-        p.add(i, i, if pinned { 1.0 } else { floor });
-    }
+    triplets.extend(pinned.iter().enumerate().map(|(i, &pinned)| (i, i, if pinned { 1.0 } else { floor })));
+    let mut p = Profile::new(model.node_count(), &triplets);
     p.factorise().then_some(p)
 }
 
@@ -366,26 +372,26 @@ mod tests {
     }
 
     #[test]
-    fn the_band_solves_what_it_factorised() {
-        // A chain of springs with a diagonal: a small SPD band.
-        let mut p = Band::new(5, 2);
-        let free = [false; 5];
-        for (i, j, k) in [(0, 1, 2.0), (1, 2, 3.0), (2, 3, 4.0), (3, 4, 5.0), (0, 2, 1.5)] {
-            p.add_free(&free, i, i, k);
-            p.add_free(&free, j, j, k);
-            p.add_free(&free, i, j, -k);
+    fn the_profile_solves_what_it_factorised() {
+        // Springs along a chain and one across it, with a diagonal: rows of
+        // different profile lengths.
+        let mut triplets = Vec::new();
+        for (i, j, k) in [(0, 1, 2.0), (1, 2, 3.0), (2, 3, 4.0), (3, 4, 5.0), (0, 3, 1.5)] {
+            triplets.extend([(i, i, k), (j, j, k), (i, j, -k)]);
         }
-        for i in 0..5 {
-            p.add(i, i, 0.25);
+        triplets.extend((0..5).map(|i| (i, i, 0.25)));
+        let mut dense = [[0.0; 5]; 5];
+        for &(i, j, v) in &triplets {
+            dense[i][j] += v;
+            if i != j {
+                dense[j][i] += v;
+            }
         }
-        let dense = p.clone();
+        let mut p = Profile::new(5, &triplets);
+        assert_eq!(p.first, [0, 0, 1, 0, 3]);
         assert!(p.factorise());
         let x: Vec<V3<f64>> = (0..5).map(|i| V3::new(i as f64, 1.0 - i as f64, 0.5)).collect();
-        let mut b: Vec<V3<f64>> = (0..5)
-            .map(|i: usize| {
-                (0..5).filter(|&j: &usize| i.abs_diff(j) <= 2).map(|j| x[j] * dense.entries[dense.index(i, j)]).sum()
-            })
-            .collect();
+        let mut b: Vec<V3<f64>> = (0..5).map(|i| (0..5).map(|j| x[j] * dense[i][j]).sum()).collect();
         p.solve(&mut b);
         assert!(b.iter().zip(&x).all(|(a, b)| (a - b).norm() < 1e-12), "{b:?}");
     }
