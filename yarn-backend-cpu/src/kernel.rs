@@ -320,7 +320,9 @@ impl<T: Real> Kernel<T> {
 
     pub(crate) fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
         let mut positions = Vec::new();
-        self.positions.to_vectors(&mut positions);
+        if self.model.revives(alive) {
+            self.positions.to_vectors(&mut positions);
+        }
         self.model.set_contacts_alive(alive, &positions)?;
         self.asleep.fill(false);
         self.quiet.fill(0);

@@ -20,7 +20,7 @@ use yarn_model::{Backend, Model, Params, State, step};
 use yarn_topology::{Chart, Fabric, Geometry, Pin, Side};
 
 use crate::GateError;
-use crate::plotdata::{PanelAxes, log_log_panel, panel_legend};
+use crate::plotdata::{PanelAxes, canvas, distinct, log_log_panel, panel_legend};
 
 /// The control interval in simulated seconds: pins move and states are
 /// compared on this clock. The paper's h = 1/1500 s is 10 substeps a tick.
@@ -357,13 +357,9 @@ pub fn write(dir: &Path, rows: &[ParetoRow]) -> Result<[PathBuf; 2], GateError> 
 }
 
 fn plot(path: &Path, rows: &[ParetoRow]) -> Result<(), GateError> {
-    crate::plotdata::register_font();
     let fail = |e: &dyn std::fmt::Display| crate::plotdata::plot_error(path, e);
-    let root = BitMapBackend::new(path, (1280, 960)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    let mut backends: Vec<&str> = rows.iter().map(|r| r.backend.as_str()).collect();
-    backends.sort_unstable();
-    backends.dedup();
+    let root = canvas(path, (1280, 960))?;
+    let backends = distinct(rows.iter().map(|r| r.backend.as_str()));
     let colour = |backend: &str| Palette99::pick(backends.iter().position(|b| *b == backend).unwrap_or(0)).to_rgba();
     for (panel, problem) in root.split_evenly((2, 2)).iter().zip(Problem::ALL) {
         let mine: Vec<&ParetoRow> =

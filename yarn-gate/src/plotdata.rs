@@ -14,6 +14,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Once;
 
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use yarn_model::{Backend, Model, Params};
 use yarn_topology::{Chart, Fabric, Geometry};
@@ -43,6 +44,22 @@ pub(crate) fn io(path: &Path, e: impl std::fmt::Display) -> GateError {
 
 pub(crate) fn plot_error(path: &Path, e: impl std::fmt::Display) -> GateError {
     GateError::Render(format!("could not draw {}: {e}", path.display()))
+}
+
+/// A white PNG canvas of `size` pixels at `path`, the font registered.
+pub(crate) fn canvas(path: &Path, size: (u32, u32)) -> Result<DrawingArea<BitMapBackend<'_>, Shift>, GateError> {
+    register_font();
+    let root = BitMapBackend::new(path, size).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| plot_error(path, e))?;
+    Ok(root)
+}
+
+/// Each backend name once, sorted: the order of a figure's colours.
+pub(crate) fn distinct<'a>(names: impl Iterator<Item = &'a str>) -> Vec<&'a str> {
+    let mut names: Vec<&str> = names.collect();
+    names.sort_unstable();
+    names.dedup();
+    names
 }
 
 /// A log-log chart in one panel of a multi-panel figure.
@@ -289,10 +306,8 @@ struct Plot<'a> {
 /// Draw `plot` into a 960x640 PNG at `path`.
 fn line_plot(path: &Path, plot: Plot<'_>) -> Result<(), GateError> {
     let Plot { title, labels: (x_label, y_label), ranges: (x_range, y_range), log, legend, series, reference } = plot;
-    register_font();
     let fail = |e: &dyn std::fmt::Display| plot_error(path, e);
-    let root = BitMapBackend::new(path, (960, 640)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let root = canvas(path, (960, 640))?;
     let mut builder = ChartBuilder::on(&root);
     builder.caption(title, (FONT, 26)).margin(16).x_label_area_size(48).y_label_area_size(80);
     // plotters types linear and log axes differently, so each combination

@@ -19,7 +19,7 @@ use yarn_model::{Backend, BackendError, Model, Params, State, step};
 use yarn_topology::{Chart, Fabric, Geometry, Pin};
 
 use crate::GateError;
-use crate::plotdata::{PanelAxes, log_log_panel, panel_legend};
+use crate::plotdata::{PanelAxes, canvas, distinct, log_log_panel, panel_legend};
 
 /// A parameter the stability map scales.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -261,13 +261,9 @@ pub fn table(rows: &[StabilityRow]) -> String {
 /// # Errors
 /// When the plot cannot be drawn.
 pub fn plot(path: &Path, rows: &[StabilityRow]) -> Result<(), GateError> {
-    crate::plotdata::register_font();
     let fail = |e: &dyn std::fmt::Display| crate::plotdata::plot_error(path, e);
-    let root = BitMapBackend::new(path, (1280, 960)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    let mut backends: Vec<&str> = rows.iter().map(|r| r.backend.as_str()).collect();
-    backends.sort_unstable();
-    backends.dedup();
+    let root = canvas(path, (1280, 960))?;
+    let backends = distinct(rows.iter().map(|r| r.backend.as_str()));
     for (panel, knob) in root.split_evenly((2, 2)).iter().zip(Knob::ALL) {
         let mine: Vec<&StabilityRow> = rows.iter().filter(|r| r.knob == knob && r.h_stable > 0.0).collect();
         if mine.is_empty() {
@@ -388,7 +384,8 @@ pub fn soak<B: Backend>(
                     }
                 }
                 backend.set_contacts_alive(&alive)?;
-                scene.set_contacts_alive(&alive, &backend.state()?.cast().positions)?;
+                let positions = if scene.revives(&alive) { backend.state()?.cast().positions } else { Vec::new() };
+                scene.set_contacts_alive(&alive, &positions)?;
             }
             _ => {
                 params.friction = 0.6 * rng.uniform();
