@@ -249,9 +249,10 @@ impl Gpu {
     /// The memory bandwidth a pass reaches on this device, in bytes per
     /// second counting each byte read and written: a compute pass
     /// (`copy.wgsl`) copying a `bytes`-sized buffer (capped by the binding
-    /// limit), the median of `repeats` timed submissions of eight copies.
-    /// The ceiling for the memory-bound passes. Returns the buffer size used
-    /// and the rate.
+    /// limit), the median of `repeats` timed submissions of 8 to 256 copies
+    /// (more for smaller buffers, so the submission's own latency is shared
+    /// out). The ceiling for the memory-bound passes. Returns the buffer
+    /// size used and the rate.
     ///
     /// # Errors
     /// When the device fails.
@@ -259,7 +260,8 @@ impl Gpu {
         let limit = self.limits.max_storage_buffer_binding_size.min(self.limits.max_buffer_size);
         let elements = (bytes.min(limit) / 16).min(u64::from(u32::MAX)) as u32;
         let bytes = u64::from(elements) * 16;
-        let seconds = self.time_copies(elements, 8, repeats)?;
+        let copies = ((1u64 << 32) / bytes.max(1)).clamp(8, 256) as u32;
+        let seconds = self.time_copies(elements, copies, repeats)?;
         Ok((bytes, 2.0 * bytes as f64 / seconds))
     }
 

@@ -656,6 +656,10 @@ impl Backend for Wgpu {
         self.check_fits("the node buffer (bytes)", n as u64 * 16)?;
         self.check_fits("the per-node contact records (bytes)", contacts as u64 * 32)?;
         self.check_dispatch(n.max(contacts))?;
+        // The fabric is accepted: free the previous one's buffers before
+        // making the new ones, so the two never hold memory together.
+        self.loaded = None;
+        self.finish()?;
         let (start, incident, _) = incidence(&model);
         let device = &self.gpu.device;
         let state = State::<f32>::at_rest(fabric);

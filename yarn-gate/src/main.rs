@@ -348,6 +348,35 @@ fn run_bench(args: &BenchArgs) -> Result<Vec<yarn_gate::bench::BenchRow>, GateEr
     Ok(rows)
 }
 
+/// Print what bounds the GPU rows below: a copy pass's bandwidth over a
+/// 1 GiB buffer, an empty dispatch's cost, and a copy of one node buffer
+/// (16 bytes a node) at each size benched, which is the least a pass over
+/// that fabric's state can take.
+fn print_gpu_floors(rows: &[yarn_gate::bench::BenchRow]) -> Result<(), String> {
+    let gpu = Gpu::new().map_err(|e| e.to_string())?;
+    let (bytes, rate) = gpu.copy_bandwidth(1 << 30, 9)?;
+    let dispatch = gpu.dispatch_overhead(9)?;
+    eprintln!(
+        "{}: a copy pass moves {:.0} GB/s (read + write, {} MiB buffer); an empty dispatch costs {:.2} µs",
+        gpu.adapter(),
+        rate / 1e9,
+        bytes >> 20,
+        dispatch * 1e6
+    );
+    let sizes: std::collections::BTreeSet<usize> =
+        rows.iter().filter(|r| r.backend.starts_with("wgpu")).map(|r| r.nodes).collect();
+    for nodes in sizes {
+        let (bytes, rate) = gpu.copy_bandwidth(nodes as u64 * 16, 9)?;
+        eprintln!(
+            "  copying one node buffer of {nodes} nodes ({} KiB): {:.2} µs a pass, {:.0} GB/s",
+            bytes >> 10,
+            2.0 * bytes as f64 / rate * 1e6,
+            rate / 1e9
+        );
+    }
+    Ok(())
+}
+
 /// Run `stress`; returns what to print.
 fn stress(args: &StressArgs) -> Result<String, GateError> {
     use yarn_gate::stress;
@@ -679,18 +708,8 @@ fn main() -> ExitCode {
             Ok(rows) => {
                 if args.backend.iter().any(|b| b.starts_with("wgpu")) {
                     // The memory-bound ceiling, measured in the same run.
-                    match Gpu::new()
-                        .map_err(|e| e.to_string())
-                        .and_then(|gpu| Ok((gpu.adapter(), gpu.copy_bandwidth(1 << 30, 9)?, gpu.dispatch_overhead(9)?)))
-                    {
-                        Ok((adapter, (bytes, rate), dispatch)) => eprintln!(
-                            "{adapter}: a copy pass moves {:.0} GB/s (read + write, {} MiB buffer); \
-                             an empty dispatch costs {:.2} µs",
-                            rate / 1e9,
-                            bytes >> 20,
-                            dispatch * 1e6
-                        ),
-                        Err(e) => eprintln!("copy bandwidth not measured: {e}"),
+                    if let Err(e) = print_gpu_floors(&rows) {
+                        eprintln!("copy bandwidth not measured: {e}");
                     }
                 }
                 if args.json {

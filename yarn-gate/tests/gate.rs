@@ -125,6 +125,28 @@ fn cli_bench_json_has_a_row_per_backend_and_size() {
     assert_eq!(rows[5]["threads"], 2);
 }
 
+/// `bench` with a GPU backend prints the ceilings its rows run into: the
+/// copy bandwidth, an empty dispatch, and a copy of one node buffer per
+/// size benched. Skips, loudly, only when there is no adapter and `CI` is
+/// unset.
+#[test]
+fn cli_gpu_bench_prints_the_floors_per_size() {
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
+        .args(["bench", "--backend", "wgpu", "--sizes", "16", "--repeats", "1", "--json"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if output.status.code() == Some(2) && std::env::var_os("CI").is_none() {
+        eprintln!("SKIPPING the GPU bench: {stderr}");
+        return;
+    }
+    assert!(output.status.success(), "{stderr}");
+    let rows: Vec<serde_json::Value> = serde_json::from_slice(&output.stdout).expect("stdout is a JSON array");
+    assert_eq!(rows.len(), 1, "{rows:?}");
+    assert!(stderr.contains("a copy pass moves") && stderr.contains("an empty dispatch costs"), "{stderr}");
+    assert!(stderr.contains("copying one node buffer of 2048 nodes"), "{stderr}");
+}
+
 /// `gpucheck` on this machine's adapter: both modes agree with Serial f32
 /// and the JSON carries the documented keys. Skips, loudly, only when there
 /// is no adapter and `CI` is unset.
