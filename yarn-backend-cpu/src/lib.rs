@@ -28,61 +28,67 @@
 #![forbid(unsafe_code)]
 
 /// The [`Backend`] methods that [`Serial`] and [`Rayon`] hand straight to
-/// their kernel, for a backend with a `kernel()` accessor and `Real = $real`.
-macro_rules! forward_to_kernel {
+/// their loaded fabric, for a backend with a `loaded()` accessor, a
+/// `loaded` field and `Real = $real`.
+macro_rules! forward_to_loaded {
     ($real:ty) => {
         fn set_params(&mut self, params: &yarn_model::Params) -> Result<(), yarn_model::BackendError> {
-            self.kernel()?.set_params(params)
+            self.loaded()?.set_params(params)
         }
 
         fn set_pins(&mut self, pins: &[yarn_topology::Pin]) -> Result<(), yarn_model::BackendError> {
-            self.kernel()?.set_pins(pins)
+            self.loaded()?.set_pins(pins)
         }
 
         fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), yarn_model::BackendError> {
-            self.kernel()?.set_contacts_alive(alive)
+            self.loaded()?.set_contacts_alive(alive)
         }
 
         fn write_state(&mut self, state: &yarn_model::State<$real>) -> Result<(), yarn_model::BackendError> {
-            self.kernel()?.write_state(state)
+            self.loaded()?.write_state(state)
         }
 
         fn read_state(&mut self, state: &mut yarn_model::State<$real>) -> Result<(), yarn_model::BackendError> {
-            self.kernel()?.read_state(state);
+            self.loaded()?.read_state(state);
             Ok(())
+        }
+
+        fn model(&self) -> Result<&yarn_model::Model<$real>, yarn_model::BackendError> {
+            self.loaded.as_ref().map(crate::fabric::CpuFabric::model).ok_or(yarn_model::BackendError::NotLoaded)
         }
     };
 }
 
-mod kernel;
+mod fabric;
 mod rayon_backend;
 
 pub use rayon_backend::Rayon;
 
-use kernel::{Exec, Kernel};
-use yarn_model::{Backend, BackendError, Model, Params, Real, State, V3, step};
+use fabric::{CpuFabric, Exec};
+use yarn_model::stages::{Stage, StagePart, StageTimes, TimingMethod};
+use yarn_model::{Backend, BackendError, Model, Params, Real, Rollback, State, V3, advance_with_rollback, step};
 use yarn_topology::{Fabric, Pin};
 
 /// The single-threaded backend, in precision `T` (`f32` or `f64`).
 #[derive(Debug, Default)]
 pub struct Serial<T: Real> {
-    kernel: Option<Kernel<T>>,
+    loaded: Option<CpuFabric<T>>,
 }
 
 impl<T: Real> Serial<T> {
     /// An empty backend; call [`Backend::load`] before use.
     pub fn new() -> Self {
-        Self { kernel: None }
+        Self { loaded: None }
     }
 
     /// Blocks of 512 nodes asleep now (see [`Params::sleep_speed`]); 0
     /// before load.
     pub fn sleeping_blocks(&self) -> usize {
-        self.kernel.as_ref().map_or(0, Kernel::sleeping_blocks)
+        self.loaded.as_ref().map_or(0, CpuFabric::sleeping_blocks)
     }
 
-    fn kernel(&mut self) -> Result<&mut Kernel<T>, BackendError> {
-        self.kernel.as_mut().ok_or(BackendError::NotLoaded)
+    fn loaded(&mut self) -> Result<&mut CpuFabric<T>, BackendError> {
+        self.loaded.as_mut().ok_or(BackendError::NotLoaded)
     }
 }
 
@@ -94,19 +100,23 @@ impl<T: Real> Backend for Serial<T> {
     }
 
     fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError> {
-        self.kernel = Some(Kernel::new(fabric, params, Exec::Sequential, 1)?);
+        self.loaded = Some(CpuFabric::new(fabric, params, Exec::Sequential, 1)?);
         Ok(())
     }
 
-    forward_to_kernel!(T);
+    forward_to_loaded!(T);
 
     fn compute_forces(&mut self, forces: &mut Vec<V3<T>>) -> Result<(), BackendError> {
-        self.kernel()?.compute_forces(forces);
+        self.loaded()?.compute_forces(forces);
         Ok(())
     }
 
     fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
-        self.kernel()?.advance(substeps)
+        self.loaded()?.advance(substeps)
+    }
+
+    fn advance_timed(&mut self, substeps: u64) -> Result<StageTimes, BackendError> {
+        self.loaded()?.advance_timed(substeps)
     }
 }
 
@@ -125,6 +135,39 @@ struct Loaded<T: Real> {
     scratch: step::Scratch<T>,
     /// Substeps completed since load.
     substeps: u64,
+    /// The state at the start of the current advance, to put back if it
+    /// diverges.
+    saved: State<T>,
+}
+
+impl<T: Real> Rollback for Loaded<T> {
+    type Real = T;
+
+    fn model_mut(&mut self) -> &mut Model<T> {
+        &mut self.model
+    }
+
+    fn save(&mut self) {
+        self.saved.clone_from(&self.state);
+    }
+
+    fn run(&mut self, substeps: u64) -> Result<(), BackendError> {
+        let limit = self.model.divergence_speed();
+        for k in 1..=substeps {
+            step::substep(&self.model, &mut self.state, &mut self.scratch);
+            self.model.close_reseats(1, |_, _| ());
+            if let Some((node, speed)) = self.state.first_diverged(limit) {
+                return Err(BackendError::Diverged { substep: self.substeps + k, node, speed, limit });
+            }
+        }
+        self.substeps += substeps;
+        Ok(())
+    }
+
+    fn restore(&mut self) -> Result<(), BackendError> {
+        self.state.clone_from(&self.saved);
+        Ok(())
+    }
 }
 
 impl<T: Real> Reference<T> {
@@ -147,8 +190,9 @@ impl<T: Real> Backend for Reference<T> {
 
     fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError> {
         let model = Model::new(fabric, params)?;
+        let state = State::at_rest(fabric);
         self.loaded =
-            Some(Loaded { model, state: State::at_rest(fabric), scratch: step::Scratch::default(), substeps: 0 });
+            Some(Loaded { model, saved: state.clone(), state, scratch: step::Scratch::default(), substeps: 0 });
         Ok(())
     }
 
@@ -184,19 +228,30 @@ impl<T: Real> Backend for Reference<T> {
     }
 
     fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
-        let Loaded { model, state, scratch, substeps: done } = self.loaded()?;
-        let (saved, reseats, limit) = (state.clone(), model.save_reseats(), model.divergence_speed());
-        for k in 1..=substeps {
-            step::substep(model, state, scratch);
-            model.close_reseats(1, |_, _| ());
-            if let Some((node, speed)) = state.first_diverged(limit) {
-                *state = saved;
-                model.restore_reseats(&reseats);
-                return Err(BackendError::Diverged { substep: *done + k, node, speed, limit });
-            }
-        }
-        *done += substeps;
-        Ok(())
+        advance_with_rollback(self.loaded()?, substeps)
+    }
+
+    fn model(&self) -> Result<&Model<T>, BackendError> {
+        self.loaded.as_ref().map(|l| &l.model).ok_or(BackendError::NotLoaded)
+    }
+
+    /// One part: the element-by-element substep is one function
+    /// ([`step::substep`]), with the re-seats and the divergence check.
+    fn advance_timed(&mut self, substeps: u64) -> Result<StageTimes, BackendError> {
+        let started = std::time::Instant::now();
+        self.advance(substeps)?;
+        let seconds = started.elapsed().as_secs_f64();
+        Ok(StageTimes {
+            substeps,
+            method: TimingMethod::CpuTimers,
+            parts: vec![StagePart {
+                pass: "step::substep",
+                stages: vec![Stage::Forces, Stage::Friction, Stage::Move, Stage::Pins, Stage::Reseat, Stage::Check],
+                seconds,
+            }],
+            wall_seconds: seconds,
+            note: None,
+        })
     }
 }
 

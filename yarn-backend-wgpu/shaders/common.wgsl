@@ -49,7 +49,7 @@ struct Pin {
 
 const WORKGROUP: u32 = 128u;
 const FRICTION_ON: u32 = 1u;
-// Bit 1: the device's `fma` rounds once (`Gpu::new` probes it), so the
+// Bit 1: the device's `fma` rounds once (`Gpu::new` tests it), so the
 // correction steps below are exact and are taken.
 const FUSED_FMA: u32 = 2u;
 // Bits of `status[0]`, which the host reads and clears after each batch: a

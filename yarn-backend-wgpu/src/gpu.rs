@@ -34,7 +34,7 @@ pub enum GpuError {
 /// A pass's pipelines, one per entry point, and the bind group layout they
 /// share.
 #[derive(Debug)]
-pub(crate) struct Kernel<const N: usize> {
+pub(crate) struct PassPipelines<const N: usize> {
     pub(crate) layout: wgpu::BindGroupLayout,
     pub(crate) entries: [wgpu::ComputePipeline; N],
 }
@@ -49,16 +49,16 @@ pub(crate) enum Slot {
 
 /// The compiled passes.
 #[derive(Debug)]
-pub(crate) struct Kernels {
+pub(crate) struct Pipelines {
     /// Entry points `step`, `forces`.
-    pub(crate) gather: Kernel<2>,
+    pub(crate) gather: PassPipelines<2>,
     /// Entry points `scatter`, `step`, `forces`.
-    pub(crate) fixed: Kernel<3>,
-    pub(crate) friction: Kernel<1>,
-    pub(crate) pins: Kernel<1>,
-    pub(crate) fused: Kernel<1>,
-    pub(crate) reseat: Kernel<1>,
-    pub(crate) check: Kernel<1>,
+    pub(crate) fixed: PassPipelines<3>,
+    pub(crate) friction: PassPipelines<1>,
+    pub(crate) pins: PassPipelines<1>,
+    pub(crate) fused: PassPipelines<1>,
+    pub(crate) reseat: PassPipelines<1>,
+    pub(crate) check: PassPipelines<1>,
 }
 
 /// A GPU device with yarnify's pipelines, shareable between backends.
@@ -69,11 +69,14 @@ pub struct Gpu {
     pub(crate) device: wgpu::Device,
     pub(crate) queue: wgpu::Queue,
     pub(crate) limits: wgpu::Limits,
-    /// The device's `fma` rounds once (probed on creation).
+    /// The device's `fma` rounds once (tested on creation).
     pub(crate) fused_fma: bool,
+    /// The device has timestamp queries (WebGPU's optional
+    /// `timestamp-query`), for the stage counters.
+    pub(crate) timestamps: bool,
     info: wgpu::AdapterInfo,
     errors: Arc<Mutex<Vec<String>>>,
-    pub(crate) kernels: Kernels,
+    pub(crate) pipelines: Pipelines,
 }
 
 impl Gpu {
@@ -108,12 +111,16 @@ impl Gpu {
             .await
             .map_err(|e| GpuError::NoAdapter { reason: e.to_string() })?;
         let info = adapter.get_info();
-        // Ask for everything the adapter offers, so large fabrics fit where
-        // the hardware allows; no feature beyond WebGPU's core is used.
+        // Ask for every limit the adapter offers, so large fabrics fit where
+        // the hardware allows. No feature beyond WebGPU's core is used by a
+        // substep; timestamp queries, where the adapter has them, serve only
+        // the stage counters.
+        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("yarnify"),
                 required_limits: adapter.limits(),
+                required_features: features,
                 ..Default::default()
             })
             .await
@@ -128,7 +135,7 @@ impl Gpu {
             sink.lock().unwrap_or_else(PoisonError::into_inner).push(format!("device lost ({reason:?}): {message}"));
         });
         use Slot::{Read, ReadWrite, Uniform};
-        let kernels = Kernels {
+        let pipelines = Pipelines {
             gather: build(
                 &device,
                 &shaders::GATHER,
@@ -158,38 +165,40 @@ impl Gpu {
             check: build(&device, &shaders::CHECK, &[Uniform, Read, Read, ReadWrite], ["main"]),
         };
         let limits = device.limits();
-        let mut gpu = Self { instance, adapter, device, queue, limits, fused_fma: false, info, errors, kernels };
+        let timestamps = features.contains(wgpu::Features::TIMESTAMP_QUERY);
+        let mut gpu =
+            Self { instance, adapter, device, queue, limits, fused_fma: false, timestamps, info, errors, pipelines };
         gpu.fused_fma =
-            gpu.probe_fma().await.map_err(|reason| GpuError::Device { adapter: gpu.info.name.clone(), reason })?;
+            gpu.test_fma().await.map_err(|reason| GpuError::Device { adapter: gpu.info.name.clone(), reason })?;
         gpu.take_error().map_err(|reason| GpuError::Device { adapter: gpu.info.name.clone(), reason })?;
         Ok(Arc::new(gpu))
     }
 
-    /// Whether `fma` rounds once on this device (`probe.wgsl`).
-    async fn probe_fma(&self) -> Result<bool, String> {
+    /// Whether `fma` rounds once on this device (`fma_test.wgsl`).
+    async fn test_fma(&self) -> Result<bool, String> {
         let device = &self.device;
         let one_ulp = 1.0 + f32::EPSILON;
         let input = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("fma probe"),
+            label: Some("fma test"),
             contents: bytemuck::cast_slice(&[one_ulp, one_ulp, -(1.0 + 2.0 * f32::EPSILON), 0.0]),
             usage: wgpu::BufferUsages::STORAGE,
         });
         let output = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("fma probe result"),
+            label: Some("fma test result"),
             size: 16,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("fma probe readback"),
+            label: Some("fma test readback"),
             size: 16,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let probe = build(device, &shaders::PROBE, &[Slot::Read, Slot::ReadWrite], ["main"]);
+        let test = build(device, &shaders::FMA_TEST, &[Slot::Read, Slot::ReadWrite], ["main"]);
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("fma probe"),
-            layout: &probe.layout,
+            label: Some("fma test"),
+            layout: &test.layout,
             entries: &[
                 wgpu::BindGroupEntry { binding: 0, resource: input.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: output.as_entire_binding() },
@@ -198,7 +207,7 @@ impl Gpu {
         let mut encoder = device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&probe.entries[0]);
+            pass.set_pipeline(&test.entries[0]);
             pass.set_bind_group(0, &group, &[]);
             pass.dispatch_workgroups(1, 1, 1);
         }
@@ -235,6 +244,13 @@ impl Gpu {
     /// their square roots and quotients to the CPU's rounding.
     pub fn fused_fma(&self) -> bool {
         self.fused_fma
+    }
+
+    /// Whether this device has timestamp queries, which the stage counters
+    /// use ([`yarn_model::Backend::advance_timed`]); without them they time
+    /// each pass by dispatching it alone.
+    pub fn timestamps(&self) -> bool {
+        self.timestamps
     }
 
     /// The adapter's name and backend, e.g. `"llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan)"`.
@@ -374,7 +390,7 @@ pub async fn read_mapped(device: &wgpu::Device, staging: &wgpu::Buffer) -> Resul
 
 /// Compile `pass` with one bind group layout of `slots`, for each entry
 /// point.
-fn build<const N: usize>(device: &wgpu::Device, pass: &Pass, slots: &[Slot], entries: [&str; N]) -> Kernel<N> {
+fn build<const N: usize>(device: &wgpu::Device, pass: &Pass, slots: &[Slot], entries: [&str; N]) -> PassPipelines<N> {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(pass.name),
         source: wgpu::ShaderSource::Wgsl(pass.source().into()),
@@ -416,5 +432,5 @@ fn build<const N: usize>(device: &wgpu::Device, pass: &Pass, slots: &[Slot], ent
             cache: None,
         })
     });
-    Kernel { layout, entries }
+    PassPipelines { layout, entries }
 }

@@ -37,7 +37,7 @@ pub(crate) struct GpuParams {
 /// `Params::flags` bit: friction is on, so the move is in the friction pass.
 pub(crate) const FRICTION_ON: u32 = 1;
 
-/// `Params::flags` bit: the device's `fma` is fused (see `probe.wgsl`).
+/// `Params::flags` bit: the device's `fma` is fused (see `fma_test.wgsl`).
 pub(crate) const FUSED_FMA: u32 = 2;
 
 /// `status[0]` bit: a fixed-point force or sum overflowed.

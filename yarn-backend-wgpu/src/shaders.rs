@@ -64,10 +64,10 @@ pub const CHECK: Pass = Pass { name: "check.wgsl", uses: &[], body: include_str!
 pub const COPY: Pass = Pass { name: "copy.wgsl", uses: &[], body: include_str!("../shaders/copy.wgsl") };
 
 /// Whether the device's `fma` is fused (entry point `main`).
-pub const PROBE: Pass = Pass { name: "probe.wgsl", uses: &[], body: include_str!("../shaders/probe.wgsl") };
+pub const FMA_TEST: Pass = Pass { name: "fma_test.wgsl", uses: &[], body: include_str!("../shaders/fma_test.wgsl") };
 
 /// Every pass, for validation.
-pub const ALL: [Pass; 9] = [GATHER, FIXED, FRICTION, PINS, FUSED, RESEAT, CHECK, COPY, PROBE];
+pub const ALL: [Pass; 9] = [GATHER, FIXED, FRICTION, PINS, FUSED, RESEAT, CHECK, COPY, FMA_TEST];
 
 #[cfg(test)]
 pub(crate) mod tests {

@@ -141,11 +141,10 @@ pub fn run_check<B: Backend>(
     progress: &mut dyn FnMut(&'static str, u64, u64),
 ) -> Result<CheckReport, GateError> {
     let fabric = Fabric::from_chart(&Chart::stockinette(config.width, config.height)?, &Geometry::default())?;
-    let scene = Model::<f64>::new(&fabric, &config.params)?;
     backend.load(&fabric, &config.params)?;
 
     let relaxation =
-        metrics::relax(&mut backend, &scene, config.steps, 100, |done| progress("relax", done, config.steps))?;
+        metrics::relax(&mut backend, &fabric, config.steps, 100, |done| progress("relax", done, config.steps))?;
     let relaxed = backend.state()?.cast::<f64>();
     let curl = metrics::curl(&fabric, &relaxed.positions)
         .ok_or(GateError::TooSmall { width: config.width, height: config.height })?;

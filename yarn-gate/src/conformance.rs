@@ -9,7 +9,7 @@
 //! strategies live in [`strategy`].
 
 use yarn_backend_cpu::{Reference, Serial};
-use yarn_model::{Backend, BackendError, Model, Params, State, V3, step, widen};
+use yarn_model::{Backend, BackendError, Params, State, V3, step, widen};
 use yarn_topology::{Fabric, Pin};
 
 /// Force agreement after one accumulation, relative to the largest
@@ -171,8 +171,9 @@ pub fn trajectory_matches_reference<B: Backend<Real = f32>>(
 ) -> (f64, f64) {
     let mut backend = make();
     scene.load(&mut backend).expect("load");
-    let got = revived_trajectory(&mut backend, scene.alive.len()).expect("advance").1;
-    let (mid, want) = revived_trajectory(&mut scene.reference(), scene.alive.len()).expect("reference advance");
+    let got = revived_trajectory(&mut backend, scene.alive.len()).expect("advance");
+    let mut reference = scene.reference();
+    let want = revived_trajectory(&mut reference, scene.alive.len()).expect("reference advance");
     let r = scene.fabric.yarn_radius();
     let err = max_diff(&got.positions, &want.positions) / r;
     let nudged = [1.0 + f32::EPSILON, 1.0 - f32::EPSILON].map(|factor| nudged_reference_end(scene, factor));
@@ -184,12 +185,9 @@ pub fn trajectory_matches_reference<B: Backend<Real = f32>>(
         backend.name()
     );
 
-    let mut model = Model::<f64>::new(&scene.fabric, &scene.params).expect("valid scene");
-    model.set_pins(&scene.pins).expect("valid pins");
-    // Every contact is alive at load, so this only releases: no positions matter.
-    model.set_contacts_alive(&scene.alive, &[]).expect("valid flags");
-    model.set_contacts_alive(&vec![true; scene.alive.len()], &mid.cast().positions).expect("valid flags");
-    model.close_reseats(TRAJECTORY_STEPS - REVIVE_AT, |_, _| ());
+    // The reference's model at the end: its pins, liveness and re-seated
+    // rests, measured in f64.
+    let model = reference.model().and_then(|m| m.in_f64(&scene.fabric)).expect("the scene's fabric");
     let energy = |state: &State<f32>| step::energy(&model, &state.cast()).total();
     let (e_got, e_want) = (energy(&got), energy(&want));
     let scale = e_want.abs().max(1.0);
@@ -204,16 +202,12 @@ pub fn trajectory_matches_reference<B: Backend<Real = f32>>(
 pub const REVIVE_AT: u64 = TRAJECTORY_STEPS / 2;
 
 /// Run [`TRAJECTORY_STEPS`] substeps, reviving every contact after
-/// [`REVIVE_AT`]: the states at the revival and at the end.
-fn revived_trajectory<B: Backend<Real = f32>>(
-    backend: &mut B,
-    contacts: usize,
-) -> Result<(State<f32>, State<f32>), BackendError> {
+/// [`REVIVE_AT`]: the state at the end.
+fn revived_trajectory<B: Backend<Real = f32>>(backend: &mut B, contacts: usize) -> Result<State<f32>, BackendError> {
     backend.advance(REVIVE_AT)?;
-    let mid = backend.state()?;
     backend.set_contacts_alive(&vec![true; contacts])?;
     backend.advance(TRAJECTORY_STEPS - REVIVE_AT)?;
-    Ok((mid, backend.state()?))
+    backend.state()
 }
 
 /// The reference trajectory's end when every starting coordinate is scaled
@@ -224,7 +218,7 @@ fn nudged_reference_end(scene: &Scene, factor: f32) -> State<f32> {
     for x in &mut nudged.state.positions {
         *x *= factor;
     }
-    revived_trajectory(&mut nudged.reference(), scene.alive.len()).expect("reference advance").1
+    revived_trajectory(&mut nudged.reference(), scene.alive.len()).expect("reference advance")
 }
 
 /// Random scenes for `proptest`.
@@ -360,7 +354,7 @@ pub fn f32_drift(fabric: &Fabric, params: &Params, steps: u64) -> Result<Drift, 
     let (a, b) = (single.state()?.cast::<f64>(), double.state()?);
     let r = fabric.yarn_radius();
     let diffs: Vec<f64> = a.positions.iter().zip(&b.positions).map(|(p, q)| (p - q).norm() / r).collect();
-    let model = Model::<f64>::new(fabric, params)?;
+    let model = double.model()?;
     let (ea, eb) = (step::energy(&model, &a).total(), step::energy(&model, &b).total());
     Ok(Drift {
         steps,

@@ -5,7 +5,7 @@
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 use yarn_model::statics::{self, StaticOptions};
-use yarn_model::{Backend, BackendError, Energy, Model, State, step, widen};
+use yarn_model::{Backend, BackendError, Model, State, step, widen};
 use yarn_topology::{Fabric, Pin, Side};
 
 /// One sample of a relaxation.
@@ -42,24 +42,16 @@ impl Relaxation {
     }
 }
 
-/// Energy of a backend's current state, measured in `f64` against `scene`.
-///
-/// # Errors
-/// Whatever the backend reports reading its state.
-pub fn measure<B: Backend>(backend: &mut B, scene: &Model<f64>) -> Result<(Energy, State<f64>), BackendError> {
-    let state = backend.state()?.cast::<f64>();
-    Ok((step::energy(scene, &state), state))
-}
-
-/// Advance `backend` by `steps` substeps, sampling energy and speed
-/// `samples` times along the way (plus once at the start). `progress` is
-/// called with the substeps done so far.
+/// Advance `backend`, loaded with `fabric`, by `steps` substeps, sampling
+/// energy ([`Backend::measure`]) and speed `samples` times along the way
+/// (plus once at the start). `progress` is called with the substeps done
+/// so far.
 ///
 /// # Errors
 /// Whatever the backend reports.
 pub fn relax<B: Backend>(
     backend: &mut B,
-    scene: &Model<f64>,
+    fabric: &Fabric,
     steps: u64,
     samples: u64,
     mut progress: impl FnMut(u64),
@@ -67,7 +59,7 @@ pub fn relax<B: Backend>(
     let samples = samples.clamp(1, steps.max(1));
     let mut trace = Vec::with_capacity(samples as usize + 1);
     let mut record = |backend: &mut B, substep: u64| -> Result<(), BackendError> {
-        let (energy, state) = measure(backend, scene)?;
+        let (energy, state) = backend.measure(fabric)?;
         trace.push(Sample { substep, total: energy.total(), bend: energy.bend, max_speed: state.max_speed() });
         Ok(())
     };

@@ -16,7 +16,7 @@ use std::time::Instant;
 use nalgebra::Vector3;
 use plotters::prelude::*;
 use serde::Serialize;
-use yarn_model::{Backend, Model, Params, State, step};
+use yarn_model::{Backend, Params};
 use yarn_topology::{Chart, Fabric, Geometry, Pin, Side};
 
 use crate::GateError;
@@ -137,7 +137,6 @@ pub fn run<B: Backend>(
 ) -> Result<Run, GateError> {
     let fabric = Fabric::from_chart(&Chart::stockinette(size.0, size.1)?, &Geometry::default())?;
     let params = problem.params(CONTROL / f64::from(per_tick));
-    let scene = Model::<f64>::new(&fabric, &params)?;
     backend.load(&fabric, &params)?;
     let duration = CONTROL * f64::from(ticks);
     let mut out = Run { checkpoints: Vec::new(), energies: Vec::new(), wall_s: 0.0, failure: None };
@@ -153,12 +152,12 @@ pub fn run<B: Backend>(
             break;
         }
         if (tick + 1) % every == 0 {
-            let state: State<f64> = backend.state()?.cast();
+            let (energy, state) = backend.measure(&fabric)?;
             if state.positions.iter().chain(&state.velocities).any(|p| !p.iter().all(|c| c.is_finite())) {
                 out.failure = Some(format!("the state is not finite at tick {}", tick + 1));
                 break;
             }
-            out.energies.push(step::energy(&scene, &state).total());
+            out.energies.push(energy.total());
             out.checkpoints.push(state.positions);
         }
     }

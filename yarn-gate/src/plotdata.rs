@@ -16,7 +16,7 @@ use std::sync::Once;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use yarn_model::{Backend, Model, Params};
+use yarn_model::{Backend, Params};
 use yarn_topology::{Chart, Fabric, Geometry};
 
 use crate::GateError;
@@ -136,9 +136,8 @@ pub fn measure<B: Backend>(
 ) -> Result<(Relaxation, Vec<Stiffness>), GateError> {
     let fabric = Fabric::from_chart(&Chart::stockinette(width, height)?, &Geometry::default())?;
     let params = Params::gate();
-    let scene = Model::<f64>::new(&fabric, &params)?;
     backend.load(&fabric, &params)?;
-    let relaxation = metrics::relax(backend, &scene, steps, 200, |done| progress("relax", done, steps))?;
+    let relaxation = metrics::relax(backend, &fabric, steps, 200, |done| progress("relax", done, steps))?;
     let relaxed = backend.state()?.cast::<f64>();
     let mut probes = Vec::new();
     let total = pull_steps * (2 * STRAINS.len()) as u64;

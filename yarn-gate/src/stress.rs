@@ -15,7 +15,7 @@ use std::path::Path;
 use nalgebra::Vector3;
 use plotters::prelude::*;
 use serde::Serialize;
-use yarn_model::{Backend, BackendError, Model, Params, State, step};
+use yarn_model::{Backend, BackendError, Params, State};
 use yarn_topology::{Chart, Fabric, Geometry, Pin};
 
 use crate::GateError;
@@ -348,7 +348,6 @@ pub fn soak<B: Backend>(
     let fabric = Fabric::from_chart(&Chart::stockinette(16, 16)?, &Geometry::default())?;
     let mut params = Params::default();
     backend.load(&fabric, &params)?;
-    let mut scene = Model::<f64>::new(&fabric, &params)?;
     let mut rng = Rng::new(seed);
     let mut alive = vec![true; fabric.contacts().len()];
     let unravel = {
@@ -384,8 +383,6 @@ pub fn soak<B: Backend>(
                     }
                 }
                 backend.set_contacts_alive(&alive)?;
-                let positions = if scene.revives(&alive) { backend.state()?.cast().positions } else { Vec::new() };
-                scene.set_contacts_alive(&alive, &positions)?;
             }
             _ => {
                 params.friction = 0.6 * rng.uniform();
@@ -393,17 +390,14 @@ pub fn soak<B: Backend>(
                 params.bend_stiffness = 3.0 + 9.0 * rng.uniform();
                 params.gravity = if rng.uniform() < 0.3 { 9.81 } else { 0.0 };
                 backend.set_params(&params)?;
-                scene.set_params(&params)?;
             }
         }
         backend.set_pins(grab.as_slice())?;
         let n = CHUNK.min(substeps - done);
         backend.advance(n)?;
-        scene.close_reseats(n, |_, _| ());
         done += n;
         if done % (10 * CHUNK) == 0 || done == substeps {
-            let state = backend.state()?.cast::<f64>();
-            max_energy = max_energy.max(step::energy(&scene, &state).total());
+            max_energy = max_energy.max(backend.measure(&fabric)?.0.total());
         }
         progress(done);
     }
@@ -423,6 +417,7 @@ pub fn soak<B: Backend>(
 mod tests {
     use super::*;
     use yarn_backend_cpu::Serial;
+    use yarn_model::{Model, step};
     use yarn_topology::Side;
 
     #[test]
@@ -465,13 +460,11 @@ mod tests {
         let mut backend = Serial::<f32>::new();
         backend.load(&fabric, &params).unwrap();
         backend.set_pins(&pins).unwrap();
-        let mut scene = Model::<f64>::new(&fabric, &params).unwrap();
-        scene.set_pins(&pins).unwrap();
         let contacts = fabric.contacts().len();
         backend.set_contacts_alive(&vec![false; contacts]).unwrap();
-        scene.set_contacts_alive(&vec![false; contacts], &[]).unwrap();
         backend.advance(3_000).unwrap();
-        let drifted = backend.state().unwrap().cast::<f64>();
+        let (before, drifted) = backend.measure(&fabric).unwrap();
+        let before = before.total();
         let off_rest = |state: &State<f64>| {
             fabric
                 .contacts()
@@ -480,28 +473,25 @@ mod tests {
                 .fold(0.0, f64::max)
         };
         assert!(off_rest(&drifted) > 3.0, "the contacts did not drift: {}", off_rest(&drifted));
-        let before = step::energy(&scene, &drifted).total();
         let mut knitted = Model::<f64>::new(&fabric, &params).unwrap();
         knitted.set_pins(&pins).unwrap();
         assert!(step::energy(&knitted, &drifted).total() > 5.0 * before, "a plain revival would not spike");
 
         backend.set_contacts_alive(&vec![true; contacts]).unwrap();
-        scene.set_contacts_alive(&vec![true; contacts], &drifted.positions).unwrap();
-        let revived = step::energy(&scene, &drifted).total();
+        let revived = backend.measure(&fabric).unwrap().0.total();
         assert!((revived - before).abs() < 1e-9 * before, "revival changed the energy: {before} -> {revived}");
         let (mut peak, mut fastest) = (revived, 0.0f64);
         for _ in 0..100 {
             backend.advance(10).unwrap();
-            scene.close_reseats(10, |_, _| ());
-            let state = backend.state().unwrap().cast::<f64>();
-            peak = peak.max(step::energy(&scene, &state).total());
+            let (energy, state) = backend.measure(&fabric).unwrap();
+            peak = peak.max(energy.total());
             fastest = fastest.max(state.max_speed());
         }
         assert!(peak < 1.5 * before, "energy peaked at {peak} from {before}");
         // The fabric gathers up as its contacts close, at up to 80 units/s
         // here; revived at their knitted rest, nodes passed 400.
         assert!(fastest < 100.0, "nodes reached {fastest} units/s");
-        assert!(scene.reseating().is_empty(), "contacts still closing after 1000 substeps");
+        assert!(backend.model().unwrap().reseating().is_empty(), "contacts still closing after 1000 substeps");
         let end = backend.state().unwrap().cast::<f64>();
         assert!(off_rest(&end) < 0.1, "contacts not back at rest: {}", off_rest(&end));
     }

@@ -2,7 +2,8 @@
 
 use yarn_topology::{Fabric, Pin, TopologyError};
 
-use crate::{ParamError, Params, Real, State, V3};
+use crate::stages::{Stage, StagePart, StageTimes, TimingMethod};
+use crate::{Energy, Model, ParamError, Params, Real, State, V3, step};
 
 /// Why a backend could not do what was asked. Each variant says what to fix.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -101,6 +102,12 @@ pub enum BackendError {
 /// loop, a thread pool and a GPU queue. Everything else (energy, metrics,
 /// probes) is computed once, above the backend, from the state it returns.
 ///
+/// The backend is the one owner of the host [`Model`]: it keeps it exact
+/// (parameters, pins, liveness, the re-seated contacts closing as the
+/// substeps run) and lends it out through [`Backend::model`], so a caller
+/// never keeps a copy of its own that could drift. [`Backend::measure`]
+/// evaluates energy from it in `f64`.
+///
 /// `advance` takes a substep count rather than being called per substep so
 /// that a GPU backend can record n substeps into one submission with no
 /// readback; reading state is a separate, explicit call for the same reason.
@@ -175,6 +182,51 @@ pub trait Backend {
     /// # Errors
     /// [`BackendError::NotLoaded`].
     fn advance(&mut self, substeps: u64) -> Result<(), BackendError>;
+
+    /// The host model of the loaded fabric: parameters, pins, liveness and
+    /// rest values as this backend runs them.
+    ///
+    /// # Errors
+    /// [`BackendError::NotLoaded`].
+    fn model(&self) -> Result<&Model<Self::Real>, BackendError>;
+
+    /// [`Backend::advance`], reporting where the substeps' time went, pass
+    /// by pass ([`StageTimes`]). The state ends where `advance` would leave
+    /// it. Timing costs only here: `advance` never reads a clock. This
+    /// default times the whole call as one part; the backends in this
+    /// workspace time each pass.
+    ///
+    /// # Errors
+    /// As [`Backend::advance`].
+    fn advance_timed(&mut self, substeps: u64) -> Result<StageTimes, BackendError> {
+        let started = std::time::Instant::now();
+        self.advance(substeps)?;
+        let seconds = started.elapsed().as_secs_f64();
+        Ok(StageTimes {
+            substeps,
+            method: TimingMethod::WallClock,
+            parts: vec![StagePart {
+                pass: "advance",
+                stages: vec![Stage::Forces, Stage::Friction, Stage::Move, Stage::Pins, Stage::Reseat, Stage::Check],
+                seconds,
+            }],
+            wall_seconds: seconds,
+            note: None,
+        })
+    }
+
+    /// The current state in `f64` and its energy by term, evaluated in
+    /// `f64` against `fabric` (the fabric loaded) and this backend's model
+    /// ([`Model::in_f64`]), so every backend is measured by the same ruler.
+    ///
+    /// # Errors
+    /// [`BackendError::NotLoaded`], [`BackendError::LengthMismatch`] when
+    /// `fabric` is not the one loaded, or a failure reading the state.
+    fn measure(&mut self, fabric: &Fabric) -> Result<(Energy, State<f64>), BackendError> {
+        let state = self.state()?.cast::<f64>();
+        let ruler = self.model()?.in_f64(fabric)?;
+        Ok((step::energy(&ruler, &state), state))
+    }
 
     /// The current state, freshly allocated.
     ///

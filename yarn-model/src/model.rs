@@ -100,23 +100,27 @@ pub struct Reseat<T> {
 
 /// A fabric's element tables and rest values in precision `T`, with the
 /// current parameters, pins and contact liveness.
+///
+/// Its fields are private so that the rule tying them together holds: a
+/// contact that comes alive away from its rest separation is re-seated
+/// ([`Reseat`]), and only [`Model::set_contacts_alive`] changes liveness.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model<T> {
     /// Rest length of spring i, between nodes i and i + 1.
-    pub spring_rest: Vec<T>,
+    spring_rest: Vec<T>,
     /// Rest turning angle θ0 of the joint at node i + 1 (nodes i, i+1, i+2).
-    pub rest_angle: Vec<T>,
+    rest_angle: Vec<T>,
     /// The persistent contacts.
-    pub contacts: Vec<ContactRest<T>>,
+    contacts: Vec<ContactRest<T>>,
     /// Liveness of each contact; dead contacts exert no force or friction.
-    pub alive: Vec<bool>,
+    alive: Vec<bool>,
     /// The contacts whose rest separation (in `contacts`) is re-seated and
     /// still closing, in contact order.
     reseating: Vec<Reseat<T>>,
     /// Pinned nodes and their targets.
-    pub pins: Vec<(u32, V3<T>)>,
+    pins: Vec<(u32, V3<T>)>,
     /// The parameters, converted.
-    pub coeffs: Coefficients<T>,
+    coeffs: Coefficients<T>,
     params: Params,
     nodes: usize,
     /// The mean spring rest length.
@@ -133,11 +137,17 @@ impl<T: Real> Model<T> {
     /// for this fabric would not fit the memory the system has free.
     pub fn new(fabric: &Fabric, params: &Params) -> Result<Self, BackendError> {
         params.validate()?;
-        let nodes = fabric.node_count();
         let scalar = size_of::<T>() as u64;
-        let needed = nodes as u64 * SCALARS_PER_NODE * scalar
+        let needed = fabric.node_count() as u64 * SCALARS_PER_NODE * scalar
             + fabric.contacts().len() as u64 * (8 + SCALARS_PER_CONTACT * scalar);
         check_memory("the simulation's arrays (bytes)", needed, available_memory())?;
+        Self::build(fabric, params)
+    }
+
+    /// [`Model::new`] without the memory check, for parameters already
+    /// validated.
+    fn build(fabric: &Fabric, params: &Params) -> Result<Self, BackendError> {
+        let nodes = fabric.node_count();
         // Springs are (i, i+1) and triples centre on i+1, in order, so the
         // tables need no index columns.
         debug_assert!(fabric.springs().iter().enumerate().all(|(i, s)| s.a as usize == i));
@@ -157,6 +167,61 @@ impl<T: Real> Model<T> {
         };
         model.set_pins(fabric.pins())?;
         Ok(model)
+    }
+
+    /// This model in `f64`, to measure by: the rest values of `fabric`, the
+    /// fabric it was built from, in `f64` (this model holds them rounded
+    /// to `T`), with this model's parameters, pins, liveness and re-seated
+    /// rest separations. Every backend's energy is evaluated against it
+    /// ([`crate::step::energy`]), so all are measured by the same ruler.
+    ///
+    /// # Errors
+    /// [`BackendError::LengthMismatch`] when `fabric` has another node,
+    /// segment, joint or contact count than this model.
+    pub fn in_f64(&self, fabric: &Fabric) -> Result<Model<f64>, BackendError> {
+        check_len("fabric nodes", self.nodes, fabric.node_count())?;
+        check_len("fabric springs", self.spring_rest.len(), fabric.springs().len())?;
+        check_len("fabric joints", self.rest_angle.len(), fabric.triples().len())?;
+        check_len("fabric contacts", self.contacts.len(), fabric.contacts().len())?;
+        let mut model = Model::<f64>::build(fabric, &self.params)?;
+        model.pins = self.pins.iter().map(|(node, target)| (*node, widen(target))).collect();
+        model.alive.clone_from(&self.alive);
+        for r in &self.reseating {
+            model.contacts[r.contact as usize].rest = self.contacts[r.contact as usize].rest.to_f64();
+            model.reseating.push(Reseat { contact: r.contact, knit: r.knit.to_f64() });
+        }
+        Ok(model)
+    }
+
+    /// Rest length of spring i, between nodes i and i + 1.
+    pub fn spring_rest(&self) -> &[T] {
+        &self.spring_rest
+    }
+
+    /// Rest turning angle θ0 of the joint at node i + 1 (nodes i, i+1, i+2).
+    pub fn rest_angle(&self) -> &[T] {
+        &self.rest_angle
+    }
+
+    /// The persistent contacts, with their rest separations now (re-seated
+    /// ones included).
+    pub fn contacts(&self) -> &[ContactRest<T>] {
+        &self.contacts
+    }
+
+    /// Liveness of each contact; dead contacts exert no force or friction.
+    pub fn alive(&self) -> &[bool] {
+        &self.alive
+    }
+
+    /// Pinned nodes and their targets.
+    pub fn pins(&self) -> &[(u32, V3<T>)] {
+        &self.pins
+    }
+
+    /// The parameters in this model's precision, with the derived factors.
+    pub fn coeffs(&self) -> &Coefficients<T> {
+        &self.coeffs
     }
 
     /// Number of nodes.

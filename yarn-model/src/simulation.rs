@@ -1,10 +1,11 @@
-//! `Simulation`: a backend, the fabric it runs and the parameters, for users
-//! who just want to run. Energy is evaluated here, in `f64`, from the state
-//! the backend reports, so every backend is measured by the same ruler.
+//! `Simulation`: a backend and the fabric it runs, for users who just want
+//! to run. The backend owns the model (parameters, pins, liveness); energy
+//! is evaluated in `f64` from it and the state it reports
+//! ([`Backend::measure`]), so every backend is measured by the same ruler.
 
 use yarn_topology::{Fabric, Pin};
 
-use crate::{Backend, BackendError, Energy, Model, Params, State, step};
+use crate::{Backend, BackendError, Energy, Params, State};
 
 /// A fabric running on a backend.
 ///
@@ -23,9 +24,6 @@ use crate::{Backend, BackendError, Energy, Model, Params, State, step};
 pub struct Simulation<B: Backend> {
     backend: B,
     fabric: Fabric,
-    /// The scene in f64 (parameters, pins, liveness), kept in step with the
-    /// backend so energy can be measured outside it.
-    scene: Model<f64>,
     substeps: u64,
 }
 
@@ -35,9 +33,8 @@ impl<B: Backend> Simulation<B> {
     /// # Errors
     /// [`BackendError::Params`] if `params` do not validate.
     pub fn new(mut backend: B, fabric: Fabric, params: Params) -> Result<Self, BackendError> {
-        let scene = Model::new(&fabric, &params)?;
         backend.load(&fabric, &params)?;
-        Ok(Self { backend, fabric, scene, substeps: 0 })
+        Ok(Self { backend, fabric, substeps: 0 })
     }
 
     /// Advance by `substeps` substeps.
@@ -46,7 +43,6 @@ impl<B: Backend> Simulation<B> {
     /// Whatever the backend reports.
     pub fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
         self.backend.advance(substeps)?;
-        self.scene.close_reseats(substeps, |_, _| ());
         self.substeps += substeps;
         Ok(())
     }
@@ -59,13 +55,13 @@ impl<B: Backend> Simulation<B> {
         self.backend.state()
     }
 
-    /// Energy of the current state by term, evaluated in `f64`.
+    /// Energy of the current state by term, evaluated in `f64`
+    /// ([`Backend::measure`]).
     ///
     /// # Errors
     /// Whatever the backend reports when reading the state.
     pub fn energy(&mut self) -> Result<Energy, BackendError> {
-        let state = self.backend.state()?.cast::<f64>();
-        Ok(step::energy(&self.scene, &state))
+        Ok(self.backend.measure(&self.fabric)?.0)
     }
 
     /// Replace the parameters.
@@ -73,7 +69,6 @@ impl<B: Backend> Simulation<B> {
     /// # Errors
     /// [`BackendError::Params`]; nothing changes then.
     pub fn set_params(&mut self, params: Params) -> Result<(), BackendError> {
-        self.scene.set_params(&params)?;
         self.backend.set_params(&params)
     }
 
@@ -82,7 +77,6 @@ impl<B: Backend> Simulation<B> {
     /// # Errors
     /// [`BackendError::Topology`] for a bad pin; nothing changes then.
     pub fn set_pins(&mut self, pins: &[Pin]) -> Result<(), BackendError> {
-        self.scene.set_pins(pins)?;
         self.backend.set_pins(pins)
     }
 
@@ -93,13 +87,7 @@ impl<B: Backend> Simulation<B> {
     /// [`BackendError::LengthMismatch`]; nothing changes then. Whatever the
     /// backend reports when reading the state.
     pub fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
-        let positions =
-            if self.scene.revives(alive) { self.backend.state()?.cast::<f64>().positions } else { Vec::new() };
-        let mut scene = self.scene.clone();
-        scene.set_contacts_alive(alive, &positions)?;
-        self.backend.set_contacts_alive(alive)?;
-        self.scene = scene;
-        Ok(())
+        self.backend.set_contacts_alive(alive)
     }
 
     /// Overwrite positions and velocities.
@@ -120,9 +108,14 @@ impl<B: Backend> Simulation<B> {
         &self.fabric
     }
 
-    /// The parameters in force.
-    pub fn params(&self) -> &Params {
-        self.scene.params()
+    /// The parameters in force: the backend's, which it changes only when
+    /// it accepts new ones.
+    ///
+    /// # Errors
+    /// [`BackendError::NotLoaded`] if the backend lost its fabric (a failed
+    /// `load` through [`Simulation::backend_mut`]).
+    pub fn params(&self) -> Result<&Params, BackendError> {
+        Ok(self.backend.model()?.params())
     }
 
     /// The backend, for calls the simulation does not wrap.

@@ -160,7 +160,7 @@ impl Profile {
 /// decoupled (its row the identity). `None` if it is not positive
 /// definite, which the solve then does without.
 fn preconditioner(model: &Model<f64>, pinned: &[bool]) -> Option<Profile> {
-    let c = &model.coeffs;
+    let c = model.coeffs();
     let mut triplets = Vec::new();
     // Entry (i, j) gains `value`, unless it couples a pinned node: a pinned
     // node's row and column stay empty but for its diagonal.
@@ -174,16 +174,16 @@ fn preconditioner(model: &Model<f64>, pinned: &[bool]) -> Option<Profile> {
         add(j, j, k);
         add(i, j, -k);
     };
-    for i in 0..model.spring_rest.len() {
+    for i in 0..model.spring_rest().len() {
         spring(i, i + 1, c.stretch);
     }
-    for (contact, _) in model.contacts.iter().zip(&model.alive).filter(|(_, alive)| **alive) {
+    for (contact, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
         spring(contact.a as usize, contact.b as usize, c.contact);
     }
     // A bend resists the second difference x_i − 2 x_{i+1} + x_{i+2} with a
     // stiffness of about k_b / ℓ².
-    for i in 0..model.rest_angle.len() {
-        let l = 0.5 * (model.spring_rest[i] + model.spring_rest[i + 1]);
+    for i in 0..model.rest_angle().len() {
+        let l = 0.5 * (model.spring_rest()[i] + model.spring_rest()[i + 1]);
         let k = c.bend / (l * l);
         let d = [1.0, -2.0, 1.0];
         for a in 0..3 {
@@ -236,7 +236,7 @@ impl Objective<'_> {
 pub fn solve(model: &Model<f64>, state: &mut State<f64>, options: &StaticOptions) -> StaticReport {
     let n = model.node_count();
     let mut pinned = vec![false; n];
-    for &(node, target) in &model.pins {
+    for &(node, target) in model.pins() {
         state.positions[node as usize] = target;
         pinned[node as usize] = true;
     }
@@ -345,11 +345,11 @@ mod tests {
         assert!(report.energy < step::energy(&model, &start).potential());
         let mut forces = Vec::new();
         step::accumulate_forces(&model, &state.positions, &mut forces);
-        let pinned: Vec<usize> = model.pins.iter().map(|&(node, _)| node as usize).collect();
+        let pinned: Vec<usize> = model.pins().iter().map(|&(node, _)| node as usize).collect();
         let worst =
             forces.iter().enumerate().filter(|(i, _)| !pinned.contains(i)).map(|(_, f)| f.norm()).fold(0.0, f64::max);
         assert!(worst <= 1e-6, "force {worst} left on a free node");
-        for &(node, target) in &model.pins {
+        for &(node, target) in model.pins() {
             assert_eq!(state.positions[node as usize], target);
         }
     }

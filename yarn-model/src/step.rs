@@ -45,22 +45,22 @@ pub struct Scratch<T: Real> {
 /// F = −∇U(x) over alive contacts (SPEC §4 step 1), written into `forces`,
 /// which is resized to the node count.
 pub fn accumulate_forces<T: Real>(model: &Model<T>, x: &[V3<T>], forces: &mut Vec<V3<T>>) {
-    let c = &model.coeffs;
+    let c = model.coeffs();
     forces.clear();
     forces.resize(x.len(), gravity_force(c.mass, c.gravity));
-    for (i, &rest) in model.spring_rest.iter().enumerate() {
+    for (i, &rest) in model.spring_rest().iter().enumerate() {
         let f = spring_force(&x[i], &x[i + 1], rest, c.stretch);
         forces[i] += f;
         forces[i + 1] -= f;
     }
-    for (i, &theta0) in model.rest_angle.iter().enumerate() {
+    for (i, &theta0) in model.rest_angle().iter().enumerate() {
         if let Some([fa, fb, fc]) = bend_forces(&x[i], &x[i + 1], &x[i + 2], c.rest_curl * theta0, c.bend) {
             forces[i] += fa;
             forces[i + 1] += fb;
             forces[i + 2] += fc;
         }
     }
-    for (contact, _) in model.contacts.iter().zip(&model.alive).filter(|(_, alive)| **alive) {
+    for (contact, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
         let (a, b) = (contact.a as usize, contact.b as usize);
         let f = spring_force(&x[a], &x[b], contact.rest, c.contact);
         forces[a] += f;
@@ -70,7 +70,7 @@ pub fn accumulate_forces<T: Real>(model: &Model<T>, x: &[V3<T>], forces: &mut Ve
 
 /// The energy of `state`, by term, evaluated in `T` and reported in `f64`.
 pub fn energy<T: Real>(model: &Model<T>, state: &State<T>) -> Energy {
-    let c = &model.coeffs;
+    let c = model.coeffs();
     let sum = |values: &mut dyn Iterator<Item = T>| values.map(Real::to_f64).sum::<f64>();
     Energy {
         kinetic: 0.5 * c.mass.to_f64() * sum(&mut state.velocities.iter().map(|v| v.norm_squared())),
@@ -80,23 +80,23 @@ pub fn energy<T: Real>(model: &Model<T>, state: &State<T>) -> Energy {
 
 /// The potential terms of [`energy`] at positions `x` (kinetic zero).
 pub fn potential<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Energy {
-    let c = &model.coeffs;
+    let c = model.coeffs();
     let sum = |values: &mut dyn Iterator<Item = T>| values.map(Real::to_f64).sum::<f64>();
     Energy {
         stretch: sum(&mut model
-            .spring_rest
+            .spring_rest()
             .iter()
             .enumerate()
             .map(|(i, &rest)| spring_energy(&x[i], &x[i + 1], rest, c.stretch))),
         bend: sum(&mut model
-            .rest_angle
+            .rest_angle()
             .iter()
             .enumerate()
             .map(|(i, &theta0)| bend_energy(&x[i], &x[i + 1], &x[i + 2], c.rest_curl * theta0, c.bend))),
         contact: sum(&mut model
-            .contacts
+            .contacts()
             .iter()
-            .zip(&model.alive)
+            .zip(model.alive())
             .filter(|(_, alive)| **alive)
             .map(|(k, _)| spring_energy(&x[k.a as usize], &x[k.b as usize], k.rest, c.contact))),
         gravity: sum(&mut x.iter().map(|p| gravity_energy(p, c.mass, c.gravity))),
@@ -117,7 +117,7 @@ pub fn friction_change<T: Real>(
     rest: T,
     model: &Model<T>,
 ) -> Option<V3<T>> {
-    let c = &model.coeffs;
+    let c = model.coeffs();
     let d = xb - xa;
     let length = d.norm();
     if !(length < rest && length > T::zero()) {
@@ -143,7 +143,7 @@ pub fn friction_change<T: Real>(
 /// 4. x' = x + h v**;
 /// 5. pinned nodes set to their targets with zero velocity.
 pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Scratch<T>) {
-    let c = &model.coeffs;
+    let c = model.coeffs();
     accumulate_forces(model, &state.positions, &mut scratch.forces);
     for (v, f) in state.velocities.iter_mut().zip(&scratch.forces) {
         *v = (*v + f * c.h_over_m) * c.damping_factor;
@@ -152,7 +152,7 @@ pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Sc
         let (x, v) = (&state.positions, &state.velocities);
         scratch.friction.clear();
         scratch.friction.resize(x.len(), V3::zeros());
-        for (k, _) in model.contacts.iter().zip(&model.alive).filter(|(_, alive)| **alive) {
+        for (k, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
             let (a, b) = (k.a as usize, k.b as usize);
             if let Some(dw) = friction_change(&x[a], &x[b], &v[a], &v[b], k.rest, model) {
                 let half = dw * T::of(0.5);
@@ -167,7 +167,7 @@ pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Sc
     for (x, v) in state.positions.iter_mut().zip(&state.velocities) {
         *x += v * c.h;
     }
-    for &(node, target) in &model.pins {
+    for &(node, target) in model.pins() {
         state.positions[node as usize] = target;
         state.velocities[node as usize] = V3::zeros();
     }
@@ -307,7 +307,7 @@ mod tests {
             mu in 0.0..2.0f64,
         ) {
             let model = two_node_contact(&Params { friction: mu, ..Params::default() });
-            let rest = model.contacts[0].rest; // 1.8, the 2r floor
+            let rest = model.contacts()[0].rest; // 1.8, the 2r floor
             let dir = V3::new(dir.0, dir.1, dir.2);
             prop_assume!(dir.norm() > 0.1);
             let xa = V3::zeros();
@@ -358,7 +358,7 @@ mod tests {
         let mut forces_alive = Vec::new();
         let mut forces_dead = Vec::new();
         let mut stretched = State::<f64>::at_rest(&fabric);
-        let k = model.contacts[0];
+        let k = model.contacts()[0];
         stretched.positions[k.b as usize] += V3::new(0.0, 1.0, 0.0);
         accumulate_forces(&model, &stretched.positions, &mut forces_alive);
         model.set_contacts_alive(&[false, true, true, true], &stretched.positions).unwrap();
@@ -368,7 +368,7 @@ mod tests {
             &stretched.positions[k.a as usize],
             &stretched.positions[k.b as usize],
             k.rest,
-            model.coeffs.contact,
+            model.coeffs().contact,
         );
         assert!((removed - expected).norm() < 1e-9, "dead contact still pulls: {removed:?} vs {expected:?}");
     }

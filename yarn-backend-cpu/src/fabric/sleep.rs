@@ -1,0 +1,140 @@
+//! Sleeping (see [`yarn_model::Params::sleep_speed`]): blocks of nodes that
+//! have stayed slow for [`yarn_model::SLEEP_AFTER`] substeps stop being
+//! integrated until a neighbouring block moves fast, a pin lands in them,
+//! or the scene changes.
+//!
+//! This module owns which blocks sleep and why they wake. It does not run
+//! the passes; they skip the blocks it reports asleep, and the caller
+//! rebuilds the live contact lists when the set changes.
+
+use yarn_model::{Model, Real, V3};
+
+use super::field::{BLOCK, Field};
+
+/// Substeps between two looks at which blocks may sleep or must wake: the
+/// look scans every awake velocity, so it is not taken every substep.
+pub(crate) const SLEEP_CHECK: u64 = 10;
+
+/// Per block: asleep or not, and since when it has been quiet.
+#[derive(Debug)]
+pub(crate) struct Sleep {
+    /// Asleep (not integrated).
+    asleep: Vec<bool>,
+    /// Substeps its nodes have all stayed below the sleep speed.
+    quiet: Vec<u32>,
+    /// The other blocks it shares a segment or a contact with.
+    neighbours: Vec<Vec<u32>>,
+}
+
+impl Sleep {
+    /// Every block of `model`'s nodes awake.
+    pub(crate) fn new<T: Real>(model: &Model<T>) -> Self {
+        let blocks = model.node_count().div_ceil(BLOCK);
+        Self { asleep: vec![false; blocks], quiet: vec![0; blocks], neighbours: neighbours(model, blocks) }
+    }
+
+    /// Per block, whether it is asleep.
+    pub(crate) fn asleep(&self) -> &[bool] {
+        &self.asleep
+    }
+
+    /// Blocks asleep now.
+    pub(crate) fn sleeping_blocks(&self) -> usize {
+        self.asleep.iter().filter(|&&a| a).count()
+    }
+
+    /// Wake every block and restart their quiet counts; returns whether
+    /// any was asleep.
+    pub(crate) fn wake_all(&mut self) -> bool {
+        self.quiet.fill(0);
+        let any = self.asleep.iter().any(|&a| a);
+        self.asleep.fill(false);
+        any
+    }
+
+    /// Every [`SLEEP_CHECK`] substeps: count quiet substeps, put blocks
+    /// that have stayed below `limit` long enough (with no pin and no fast
+    /// neighbour) to sleep, with their velocities zeroed and their next
+    /// positions at their positions, and wake sleepers next to a block
+    /// moving at twice `limit`. Returns whether any block changed.
+    pub(crate) fn update<T: Real>(
+        &mut self,
+        limit: f64,
+        pins: &[(u32, V3<T>)],
+        positions: &Field<T>,
+        velocities: &mut Field<T>,
+        next_positions: &mut Field<T>,
+    ) -> bool {
+        if limit <= 0.0 {
+            return false;
+        }
+        let blocks = self.asleep.len();
+        // The fastest node of each awake block, squared.
+        let speed2: Vec<f64> = (0..blocks)
+            .map(|block| {
+                if self.asleep[block] {
+                    return 0.0;
+                }
+                let [x, y, z] = velocities.block(block);
+                let mut max = T::zero();
+                for k in 0..x.len() {
+                    let s = x[k] * x[k] + y[k] * y[k] + z[k] * z[k];
+                    max = if s > max { s } else { max };
+                }
+                max.to_f64()
+            })
+            .collect();
+        let mut pinned = vec![false; blocks];
+        for &(node, _) in pins {
+            pinned[node as usize / BLOCK] = true;
+        }
+        let (sleep2, wake2) = (limit * limit, 4.0 * limit * limit);
+        let fast_neighbour = |block: usize| self.neighbours[block].iter().any(|&n| speed2[n as usize] > wake2);
+        let mut changed = false;
+        for block in 0..blocks {
+            if self.asleep[block] {
+                if pinned[block] || fast_neighbour(block) {
+                    (self.asleep[block], self.quiet[block], changed) = (false, 0, true);
+                }
+                continue;
+            }
+            self.quiet[block] =
+                if speed2[block] < sleep2 && !pinned[block] { self.quiet[block] + SLEEP_CHECK as u32 } else { 0 };
+            if self.quiet[block] >= yarn_model::SLEEP_AFTER && !fast_neighbour(block) {
+                (self.asleep[block], changed) = (true, true);
+                let range = block * BLOCK..((block + 1) * BLOCK).min(positions.len());
+                for (v, (x, next)) in [&mut velocities.x, &mut velocities.y, &mut velocities.z].into_iter().zip([
+                    (&positions.x, &mut next_positions.x),
+                    (&positions.y, &mut next_positions.y),
+                    (&positions.z, &mut next_positions.z),
+                ]) {
+                    v[range.clone()].fill(T::zero());
+                    next[range.clone()].copy_from_slice(&x[range.clone()]);
+                }
+            }
+        }
+        changed
+    }
+}
+
+/// Per block, the other blocks it shares a segment or a contact with.
+fn neighbours<T: Real>(model: &Model<T>, blocks: usize) -> Vec<Vec<u32>> {
+    let mut out = vec![Vec::new(); blocks];
+    let mut link = |a: usize, b: usize| {
+        if a != b {
+            out[a].push(b as u32);
+            out[b].push(a as u32);
+        }
+    };
+    for block in 1..blocks {
+        link(block - 1, block);
+    }
+    for c in model.contacts() {
+        link(c.a as usize / BLOCK, c.b as usize / BLOCK);
+    }
+    for list in &mut out {
+        list.sort_unstable();
+        list.dedup();
+    }
+    out
+}

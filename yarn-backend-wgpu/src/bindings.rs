@@ -1,0 +1,289 @@
+//! A loaded fabric's GPU buffers and the bind groups of every pass over
+//! them, with the uploads that fill them from the host model.
+//!
+//! This module owns the buffer layout and which buffer each pass binds
+//! where; the per-mode choice of forces pass and its bindings is made once,
+//! in [`forces_kernel`]. It does not record or submit any work.
+
+use bytemuck::Pod;
+use wgpu::util::DeviceExt;
+use yarn_model::{Model, V3};
+
+use crate::Mode;
+use crate::gpu::{Gpu, Pipelines};
+use crate::layout::{GpuContact, GpuReseat};
+
+/// Which of each double-buffered pair holds the current state:
+/// `x[parity.x]` and `v[parity.v]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) struct Parity {
+    pub(crate) x: usize,
+    pub(crate) v: usize,
+}
+
+/// One bind group for each parity.
+#[derive(Debug)]
+pub(crate) struct ByParity([[wgpu::BindGroup; 2]; 2]);
+
+impl ByParity {
+    fn new(make: impl Fn(usize, usize) -> wgpu::BindGroup) -> Self {
+        Self([[make(0, 0), make(0, 1)], [make(1, 0), make(1, 1)]])
+    }
+
+    pub(crate) fn at(&self, parity: Parity) -> &wgpu::BindGroup {
+        &self.0[parity.x][parity.v]
+    }
+}
+
+#[derive(Debug)]
+pub(crate) struct Buffers {
+    pub(crate) params: wgpu::Buffer,
+    pub(crate) x: [wgpu::Buffer; 2],
+    pub(crate) v: [wgpu::Buffer; 2],
+    pub(crate) forces: wgpu::Buffer,
+    /// Per node i: the rest length of segment i and κθ0 of joint i.
+    pub(crate) chain: wgpu::Buffer,
+    pub(crate) contacts: wgpu::Buffer,
+    /// Each node's contacts, copied in contact order:
+    /// `incident[start[i]..start[i + 1]]`.
+    pub(crate) start: wgpu::Buffer,
+    pub(crate) incident: wgpu::Buffer,
+    pub(crate) pins: wgpu::Buffer,
+    pub(crate) pin_count: u32,
+    /// The re-seated contacts closing, with their slots in `incident`.
+    pub(crate) reseats: wgpu::Buffer,
+    pub(crate) reseat_count: u32,
+    /// Fixed-point accumulators (three i32 per node).
+    pub(crate) acc: wgpu::Buffer,
+    /// `status[0]`: the OVERFLOWED and DIVERGED bits a batch raised, and
+    /// the mappable copy each submission ends with, so reading it costs no
+    /// second round trip.
+    pub(crate) status: wgpu::Buffer,
+    pub(crate) status_readback: wgpu::Buffer,
+    /// The positions and velocities a batch started from, put back if it
+    /// overflows or diverges.
+    pub(crate) snapshot: [wgpu::Buffer; 2],
+}
+
+impl Buffers {
+    /// The buffers of `model` with its nodes at `positions` and
+    /// `velocities` (no pins or re-seats yet: [`Groups`] and the uploads
+    /// fill those).
+    pub(crate) fn new(
+        device: &wgpu::Device,
+        model: &Model<f32>,
+        positions: &[V3<f32>],
+        velocities: &[V3<f32>],
+    ) -> Self {
+        let (start, incident, _) = incidence(model);
+        let (x, v) = (vec4s(positions), vec4s(velocities));
+        Self {
+            params: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("params"),
+                size: std::mem::size_of::<crate::layout::GpuParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            x: [storage(device, "x0", &x), storage(device, "x1", &x)],
+            v: [storage(device, "v0", &v), storage(device, "v1", &v)],
+            forces: storage(device, "forces", &v),
+            chain: storage(device, "chain", &chain(model)),
+            contacts: storage(device, "contacts", &gpu_contacts(model)),
+            start: storage(device, "start", &start),
+            incident: storage(device, "incident", &incident),
+            pins: storage(device, "pins", &[0u32; 4]),
+            pin_count: 0,
+            reseats: storage(device, "reseats", &[0u32; 4]),
+            reseat_count: 0,
+            acc: storage(device, "accumulators", &vec![0i32; 3 * model.node_count()]),
+            status: storage(device, "status", &[0u32; 4]),
+            status_readback: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("status readback"),
+                size: 16,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            snapshot: [x.len(), v.len()].map(|elements| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("snapshot"),
+                    size: (elements.max(1) * 16) as u64,
+                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                })
+            }),
+        }
+    }
+}
+
+/// The bind groups of every pass for every parity: the forces pass
+/// writing the next positions (`step`) or the force buffer
+/// (`forces_only`), friction, pins, the fused substep, the divergence
+/// check, and the reseat pass (which binds no state).
+#[derive(Debug)]
+pub(crate) struct Groups {
+    pub(crate) step: ByParity,
+    pub(crate) forces_only: ByParity,
+    pub(crate) friction: ByParity,
+    pub(crate) pins: ByParity,
+    pub(crate) fused: ByParity,
+    pub(crate) check: ByParity,
+    pub(crate) reseat: wgpu::BindGroup,
+}
+
+impl Groups {
+    pub(crate) fn new(gpu: &Gpu, mode: Mode, buffers: &Buffers) -> Self {
+        let pipelines = &gpu.pipelines;
+        let (x, v) = (&buffers.x, &buffers.v);
+        let forces = forces_kernel(mode, pipelines, buffers);
+        let forces_pass = |label, px: usize, pv: usize, out: &wgpu::Buffer| {
+            let mut bound = vec![&buffers.params, &x[px], &v[pv], out];
+            bound.extend(forces.bindings.iter().flatten());
+            bind(gpu, forces.layout, label, &bound)
+        };
+        Self {
+            step: ByParity::new(|px, pv| forces_pass("step", px, pv, &x[1 - px])),
+            forces_only: ByParity::new(|px, pv| forces_pass("forces", px, pv, &buffers.forces)),
+            friction: ByParity::new(|px, pv| {
+                let bound =
+                    [&buffers.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &buffers.start, &buffers.incident];
+                bind(gpu, &pipelines.friction.layout, "friction", &bound)
+            }),
+            pins: ByParity::new(|px, pv| {
+                bind(gpu, &pipelines.pins.layout, "pins", &[&buffers.params, &x[px], &v[pv], &buffers.pins])
+            }),
+            check: ByParity::new(|px, pv| {
+                bind(gpu, &pipelines.check.layout, "check", &[&buffers.params, &x[px], &v[pv], &buffers.status])
+            }),
+            reseat: reseat_group(gpu, buffers),
+            fused: ByParity::new(|px, pv| {
+                let bound = [
+                    &buffers.params,
+                    &x[px],
+                    &v[pv],
+                    &x[1 - px],
+                    &v[1 - pv],
+                    &buffers.chain,
+                    &buffers.start,
+                    &buffers.incident,
+                ];
+                bind(gpu, &pipelines.fused.layout, "fused", &bound)
+            }),
+        }
+    }
+}
+
+/// The reseat pass's bind group, remade when its buffer is.
+pub(crate) fn reseat_group(gpu: &Gpu, buffers: &Buffers) -> wgpu::BindGroup {
+    let bound = [&buffers.params, &buffers.contacts, &buffers.incident, &buffers.reseats];
+    bind(gpu, &gpu.pipelines.reseat.layout, "reseat", &bound)
+}
+
+/// A mode's forces pass, chosen in this one place: its bind group layout,
+/// the buffers it binds after `params, x, v, out`, and its pipelines.
+#[derive(Debug)]
+pub(crate) struct ForcesKernel<'a> {
+    pub(crate) layout: &'a wgpu::BindGroupLayout,
+    /// In binding order; `None` past the mode's last (no allocation, as
+    /// the plan of every substep asks for this).
+    pub(crate) bindings: [Option<&'a wgpu::Buffer>; 4],
+    /// Fixed point's scatter into the accumulators, over one thread per
+    /// node or contact, before the update; gather has none.
+    pub(crate) scatter: Option<&'a wgpu::ComputePipeline>,
+    /// The update that makes the substep's v* (`update.wgsl`'s `step`).
+    pub(crate) step: &'a wgpu::ComputePipeline,
+    /// The update that writes the force field (`update.wgsl`'s `forces`).
+    pub(crate) forces: &'a wgpu::ComputePipeline,
+    /// The step's name in the stage counters.
+    pub(crate) step_name: &'static str,
+}
+
+/// The forces pass of `mode`.
+pub(crate) fn forces_kernel<'a>(mode: Mode, pipelines: &'a Pipelines, buffers: &'a Buffers) -> ForcesKernel<'a> {
+    match mode {
+        Mode::Gather => ForcesKernel {
+            layout: &pipelines.gather.layout,
+            bindings: [Some(&buffers.chain), Some(&buffers.start), Some(&buffers.incident), None],
+            scatter: None,
+            step: &pipelines.gather.entries[0],
+            forces: &pipelines.gather.entries[1],
+            step_name: "gather.wgsl step",
+        },
+        Mode::FixedPointAtomic => ForcesKernel {
+            layout: &pipelines.fixed.layout,
+            bindings: [Some(&buffers.chain), Some(&buffers.contacts), Some(&buffers.acc), Some(&buffers.status)],
+            scatter: Some(&pipelines.fixed.entries[0]),
+            step: &pipelines.fixed.entries[1],
+            forces: &pipelines.fixed.entries[2],
+            step_name: "fixed.wgsl step",
+        },
+    }
+}
+
+fn bind(gpu: &Gpu, layout: &wgpu::BindGroupLayout, label: &str, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+    let entries: Vec<_> = buffers
+        .iter()
+        .enumerate()
+        .map(|(i, buffer)| wgpu::BindGroupEntry { binding: i as u32, resource: buffer.as_entire_binding() })
+        .collect();
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
+}
+
+/// A storage buffer holding `data` (padded to one 16-byte element when
+/// empty: a binding may not be).
+pub(crate) fn storage(device: &wgpu::Device, label: &str, data: &[impl Pod]) -> wgpu::Buffer {
+    let bytes: &[u8] = bytemuck::cast_slice(data);
+    let contents = if bytes.is_empty() { &[0u8; 16][..] } else { bytes };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+    })
+}
+
+pub(crate) fn vec4s(v: &[V3<f32>]) -> Vec<[f32; 4]> {
+    v.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect()
+}
+
+/// Per node i: the rest length of segment i and κθ0 of joint i, zero past
+/// the yarn's ends.
+pub(crate) fn chain(model: &Model<f32>) -> Vec<[f32; 2]> {
+    let kappa = model.coeffs().rest_curl;
+    (0..model.node_count())
+        .map(|i| {
+            [
+                model.spring_rest().get(i).copied().unwrap_or(0.0),
+                model.rest_angle().get(i).map_or(0.0, |&theta0| kappa * theta0),
+            ]
+        })
+        .collect()
+}
+
+pub(crate) fn gpu_contacts(model: &Model<f32>) -> Vec<GpuContact> {
+    model
+        .contacts()
+        .iter()
+        .zip(model.alive())
+        .map(|(c, &alive)| GpuContact { a: c.a, b: c.b, rest: c.rest, alive: u32::from(alive) })
+        .collect()
+}
+
+/// Each node's alive contacts in contact order, as `start` offsets into
+/// `incident`, which holds a copy of each contact record per node; and the
+/// re-seated contacts with the slots of their two copies.
+pub(crate) fn incidence(model: &Model<f32>) -> (Vec<u32>, Vec<GpuContact>, Vec<GpuReseat>) {
+    let contacts = gpu_contacts(model);
+    let (start, entries) = model.incidence();
+    let mut slots = vec![[0u32; 2]; contacts.len()];
+    for (entry, &(node, contact)) in entries.iter().enumerate() {
+        slots[contact as usize][usize::from(contacts[contact as usize].b == node)] = entry as u32;
+    }
+    let reseats = model
+        .reseating()
+        .iter()
+        .map(|r| {
+            let [slot_a, slot_b] = slots[r.contact as usize];
+            GpuReseat { contact: r.contact, slot_a, slot_b, knit: r.knit }
+        })
+        .collect();
+    (start, entries.into_iter().map(|(_, contact)| contacts[contact as usize]).collect(), reseats)
+}

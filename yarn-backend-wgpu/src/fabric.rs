@@ -1,0 +1,410 @@
+//! A fabric loaded on the GPU: its host model, buffers and bind groups,
+//! which pair of state buffers is current, and the newest state the CPU
+//! side holds. It owns every operation on a loaded fabric, so the backend
+//! in `lib.rs` only forwards to it.
+//!
+//! This module owns the uploads, the read-backs, the batch submission and
+//! its rollback; what a substep dispatches is in `record.rs`, the buffers
+//! in `bindings.rs`, and the stage counters in `timing.rs`.
+
+use std::sync::Arc;
+
+use yarn_model::{BackendError, Model, Rollback, State, V3, advance_with_rollback};
+
+use crate::bindings::{
+    Buffers, Groups, Parity, chain, forces_kernel, gpu_contacts, incidence, reseat_group, storage, vec4s,
+};
+use crate::gpu::{Gpu, read_mapped};
+use crate::layout::{DIVERGED, FRICTION_ON, FUSED_FMA, GpuParams, GpuPin, OVERFLOWED};
+use crate::timing::Timestamps;
+use crate::{Checkpoint, FIXED_POINT_SCALE, Mode, WORKGROUP};
+
+/// A fabric on the GPU.
+#[derive(Debug)]
+pub(crate) struct GpuFabric {
+    pub(crate) gpu: Arc<Gpu>,
+    pub(crate) mode: Mode,
+    /// Gather mode with friction fuses its substep below this many nodes.
+    pub(crate) fuse_below: usize,
+    pub(crate) model: Model<f32>,
+    pub(crate) buffers: Buffers,
+    pub(crate) groups: Groups,
+    /// Which buffer of each pair is current.
+    pub(crate) parity: Parity,
+    /// Substeps since load.
+    pub(crate) substeps: u64,
+    /// The newest state copied to the CPU.
+    pub(crate) checkpoint: Checkpoint,
+    /// Where the batch in flight started, for [`Rollback::restore`].
+    saved: (Parity, u64),
+    /// Set by the stage counters while a timed batch runs.
+    pub(crate) timestamps: Option<Timestamps>,
+}
+
+/// Check that `model` fits the device: its buffers one binding each, its
+/// passes one dispatch each.
+///
+/// # Errors
+/// [`BackendError::TooLarge`] naming the limit.
+pub(crate) fn check_fits(gpu: &Gpu, model: &Model<f32>) -> Result<(), BackendError> {
+    let (nodes, contacts) = (model.node_count(), model.contacts().len());
+    fits_binding(gpu, "the node buffer (bytes)", nodes as u64 * 16)?;
+    fits_binding(gpu, "the per-node contact records (bytes)", contacts as u64 * 32)?;
+    fits_dispatch(gpu, nodes.max(contacts))
+}
+
+/// Check that a buffer of `bytes` fits one binding.
+fn fits_binding(gpu: &Gpu, what: &'static str, bytes: u64) -> Result<(), BackendError> {
+    let limits = &gpu.limits;
+    let (limit, limit_name) = if limits.max_storage_buffer_binding_size < limits.max_buffer_size {
+        (limits.max_storage_buffer_binding_size, "max_storage_buffer_binding_size")
+    } else {
+        (limits.max_buffer_size, "max_buffer_size")
+    };
+    if bytes > limit { Err(BackendError::TooLarge { what, needed: bytes, limit, limit_name }) } else { Ok(()) }
+}
+
+/// Check that `threads` fit one dispatch.
+fn fits_dispatch(gpu: &Gpu, threads: usize) -> Result<(), BackendError> {
+    if u32::try_from(threads).ok().and_then(|t| gpu.groups(t)).is_some() {
+        return Ok(());
+    }
+    let max = u64::from(gpu.limits.max_compute_workgroups_per_dimension);
+    Err(BackendError::TooLarge {
+        what: "the dispatch (threads)",
+        needed: threads as u64,
+        limit: max * max * u64::from(WORKGROUP),
+        limit_name: "max_compute_workgroups_per_dimension",
+    })
+}
+
+/// The largest force component one fixed-point addition takes: half the
+/// i32 range, so a node's sum of a few such terms is checked for wrapping.
+pub(crate) fn max_force() -> f64 {
+    f64::from(i32::MAX) / f64::from(FIXED_POINT_SCALE) / 2.0
+}
+
+/// Wait for the GPU, then report any error it raised.
+pub(crate) fn finish(gpu: &Gpu) -> Result<(), BackendError> {
+    gpu.device
+        .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+        .map_err(|e| BackendError::Device(e.to_string()))?;
+    gpu.take_error().map_err(BackendError::Device)
+}
+
+/// `vec4<f32>` bytes as vectors (w dropped).
+pub(crate) fn vectors(bytes: &[u8]) -> Vec<V3<f32>> {
+    bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(bytes).iter().map(|v| V3::new(v[0], v[1], v[2])).collect()
+}
+
+impl GpuFabric {
+    /// Upload `model` (checked by [`check_fits`]) at `state`.
+    pub(crate) fn new(gpu: Arc<Gpu>, mode: Mode, fuse_below: usize, model: Model<f32>, state: State<f32>) -> Self {
+        let buffers = Buffers::new(&gpu.device, &model, &state.positions, &state.velocities);
+        let groups = Groups::new(&gpu, mode, &buffers);
+        let checkpoint = Checkpoint { substeps: 0, state };
+        let mut fabric = Self {
+            gpu,
+            mode,
+            fuse_below,
+            model,
+            buffers,
+            groups,
+            parity: Parity::default(),
+            substeps: 0,
+            checkpoint,
+            saved: (Parity::default(), 0),
+            timestamps: None,
+        };
+        fabric.upload_pins();
+        fabric
+    }
+
+    /// The buffer holding the current positions.
+    pub(crate) fn positions(&self) -> &wgpu::Buffer {
+        &self.buffers.x[self.parity.x]
+    }
+
+    fn gpu_params(&self) -> GpuParams {
+        let c = self.model.coeffs();
+        GpuParams {
+            nodes: self.model.node_count() as u32,
+            contacts: self.model.contacts().len() as u32,
+            pins: self.buffers.pin_count,
+            flags: if c.friction > 0.0 { FRICTION_ON } else { 0 } | if self.gpu.fused_fma { FUSED_FMA } else { 0 },
+            stretch: c.stretch,
+            bend: c.bend,
+            contact: c.contact,
+            friction: c.friction,
+            h: c.h,
+            h_over_m: c.h_over_m,
+            damping_factor: c.damping_factor,
+            friction_impulse: c.friction_impulse,
+            gravity_y: -c.mass * c.gravity,
+            min_sin: yarn_model::terms::MIN_SIN_THETA as f32,
+            scale: FIXED_POINT_SCALE,
+            max_force: max_force() as f32,
+            max_speed: self.model.divergence_speed() as f32,
+            one: 1.0,
+            reseat_step: self.model.reseat_step(),
+            reseats: self.buffers.reseat_count,
+        }
+    }
+
+    pub(crate) fn write_params(&self) {
+        self.gpu.queue.write_buffer(&self.buffers.params, 0, bytemuck::bytes_of(&self.gpu_params()));
+    }
+
+    /// Upload the model's pins and parameters, and rebind.
+    fn upload_pins(&mut self) {
+        let pins: Vec<GpuPin> = self
+            .model
+            .pins()
+            .iter()
+            .map(|&(node, target)| GpuPin { goal: [target.x, target.y, target.z], node })
+            .collect();
+        self.buffers.pin_count = pins.len() as u32;
+        self.buffers.pins = storage(&self.gpu.device, "pins", &pins);
+        self.groups = Groups::new(&self.gpu, self.mode, &self.buffers);
+        self.write_params();
+    }
+
+    /// Upload the model's contact records, per-node lists and re-seated
+    /// contacts, and rebind the reseat pass to its new buffer.
+    pub(crate) fn upload_contacts(&mut self) {
+        let queue = &self.gpu.queue;
+        queue.write_buffer(&self.buffers.contacts, 0, bytemuck::cast_slice(&gpu_contacts(&self.model)));
+        // Only alive contacts are listed per node, so a released contact
+        // costs the gather nothing.
+        let (start, incident, reseats) = incidence(&self.model);
+        queue.write_buffer(&self.buffers.start, 0, bytemuck::cast_slice(&start));
+        if !incident.is_empty() {
+            queue.write_buffer(&self.buffers.incident, 0, bytemuck::cast_slice(&incident));
+        }
+        self.buffers.reseat_count = reseats.len() as u32;
+        self.buffers.reseats = storage(&self.gpu.device, "reseats", &reseats);
+        self.groups.reseat = reseat_group(&self.gpu, &self.buffers);
+        self.write_params();
+    }
+
+    pub(crate) fn set_params(&mut self, params: &yarn_model::Params) -> Result<(), BackendError> {
+        self.model.set_params(params)?;
+        self.write_params();
+        self.gpu.queue.write_buffer(&self.buffers.chain, 0, bytemuck::cast_slice(&chain(&self.model)));
+        Ok(())
+    }
+
+    pub(crate) fn set_pins(&mut self, pins: &[yarn_topology::Pin]) -> Result<(), BackendError> {
+        self.model.set_pins(pins)?;
+        self.upload_pins();
+        Ok(())
+    }
+
+    /// As the trait says. Reviving a contact reads the positions back,
+    /// which the browser cannot do while waiting: there it is an error.
+    pub(crate) fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
+        let mut positions = Vec::new();
+        if self.model.revives(alive) && alive.len() == self.model.contacts().len() {
+            self.read_vectors(self.positions(), self.model.node_count(), &mut positions)?;
+        }
+        self.model.set_contacts_alive(alive, &positions)?;
+        self.upload_contacts();
+        Ok(())
+    }
+
+    pub(crate) fn write_state(&mut self, state: &State<f32>) -> Result<(), BackendError> {
+        state.check_len(self.model.node_count())?;
+        let queue = &self.gpu.queue;
+        queue.write_buffer(&self.buffers.x[self.parity.x], 0, bytemuck::cast_slice(&vec4s(&state.positions)));
+        queue.write_buffer(&self.buffers.v[self.parity.v], 0, bytemuck::cast_slice(&vec4s(&state.velocities)));
+        self.checkpoint = Checkpoint { substeps: self.substeps, state: state.clone() };
+        Ok(())
+    }
+
+    /// As the trait says; the state read is also kept as the
+    /// [`crate::Wgpu::last_good_state`].
+    pub(crate) fn read_state(&mut self, state: &mut State<f32>) -> Result<(), BackendError> {
+        let n = self.model.node_count();
+        self.read_vectors(&self.buffers.x[self.parity.x], n, &mut state.positions)?;
+        self.read_vectors(&self.buffers.v[self.parity.v], n, &mut state.velocities)?;
+        self.checkpoint = Checkpoint { substeps: self.substeps, state: state.clone() };
+        Ok(())
+    }
+
+    pub(crate) fn compute_forces(&mut self, forces: &mut Vec<V3<f32>>) -> Result<(), BackendError> {
+        let n = self.model.node_count();
+        let kernel = forces_kernel(self.mode, &self.gpu.pipelines, &self.buffers);
+        let group = self.groups.forces_only.at(self.parity);
+        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            if let Some(scatter) = kernel.scatter {
+                let (gx, gy) = self.gpu.groups(n.max(self.model.contacts().len()) as u32).unwrap_or((1, 1));
+                pass.set_pipeline(scatter);
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            let (gx, gy) = self.gpu.groups(n as u32).unwrap_or((1, 1));
+            pass.set_pipeline(kernel.forces);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        self.record_status(&mut encoder);
+        self.gpu.queue.submit([encoder.finish()]);
+        self.check_status(self.substeps, self.substeps)?;
+        self.read_vectors(&self.buffers.forces, n, forces)
+    }
+
+    pub(crate) fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
+        advance_with_rollback(self, substeps)
+    }
+
+    /// Copy `bytes` of `buffer` back to the CPU, waiting for the device.
+    /// In the browser nothing may wait: use [`crate::Wgpu::read_positions`].
+    pub(crate) fn read(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>, BackendError> {
+        if cfg!(target_arch = "wasm32") {
+            return Err(BackendError::Device(
+                "a blocking read-back is not possible in the browser; await `Wgpu::read_positions` instead".into(),
+            ));
+        }
+        pollster::block_on(self.read_async(buffer, bytes))
+    }
+
+    /// Submit a copy of `bytes` of `buffer` to a staging buffer; the
+    /// future owns what it needs, so no borrow of `self` is held while it
+    /// waits.
+    pub(crate) fn read_async(
+        &self,
+        buffer: &wgpu::Buffer,
+        bytes: u64,
+    ) -> impl std::future::Future<Output = Result<Vec<u8>, BackendError>> + 'static {
+        let device = &self.gpu.device;
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes);
+        self.gpu.queue.submit([encoder.finish()]);
+        let gpu = Arc::clone(&self.gpu);
+        async move {
+            let bytes = read_mapped(&gpu.device, &staging).await.map_err(BackendError::Device)?;
+            gpu.take_error().map_err(BackendError::Device)?;
+            Ok(bytes)
+        }
+    }
+
+    /// Read a node buffer of `vec4<f32>` as vectors.
+    fn read_vectors(&self, buffer: &wgpu::Buffer, nodes: usize, out: &mut Vec<V3<f32>>) -> Result<(), BackendError> {
+        let bytes = self.read(buffer, (nodes * 16) as u64)?;
+        *out = vectors(&bytes);
+        Ok(())
+    }
+
+    /// End a submission by copying the status to its mappable twin and
+    /// clearing it for the next.
+    pub(crate) fn record_status(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.copy_buffer_to_buffer(&self.buffers.status, 0, &self.buffers.status_readback, 0, 16);
+        encoder.clear_buffer(&self.buffers.status, 0, None);
+    }
+
+    /// Wait for the GPU, then read the status the batch of substeps
+    /// `first..end` raised (copied by [`Self::record_status`], so this is
+    /// the only wait): a fixed-point overflow, or a diverged state, which
+    /// the read-back state then names. In the browser, where nothing may
+    /// wait, only device errors are reported.
+    fn check_status(&self, first: u64, end: u64) -> Result<(), BackendError> {
+        if cfg!(target_arch = "wasm32") {
+            return finish(&self.gpu);
+        }
+        let status = pollster::block_on(read_mapped(&self.gpu.device, &self.buffers.status_readback))
+            .map_err(BackendError::Device)?;
+        self.gpu.take_error().map_err(BackendError::Device)?;
+        let status = bytemuck::pod_read_unaligned::<u32>(&status[..4]);
+        if status & (OVERFLOWED | DIVERGED) == 0 {
+            return Ok(());
+        }
+        if status & OVERFLOWED != 0 {
+            return Err(BackendError::Overflow { first, end, max_force: max_force() });
+        }
+        let limit = self.model.divergence_speed();
+        let n = self.model.node_count();
+        let mut state = State { positions: Vec::new(), velocities: Vec::new() };
+        self.read_vectors(&self.buffers.x[self.parity.x], n, &mut state.positions)?;
+        self.read_vectors(&self.buffers.v[self.parity.v], n, &mut state.velocities)?;
+        let (node, speed) = state.first_diverged(f64::from(limit as f32)).unwrap_or((0, f64::NAN));
+        Err(BackendError::Diverged { substep: end, node, speed, limit })
+    }
+}
+
+/// A batch is one submission: the snapshot copies, every substep's
+/// dispatches, the divergence check and the status copy, then one wait.
+impl Rollback for GpuFabric {
+    type Real = f32;
+
+    fn model_mut(&mut self) -> &mut Model<f32> {
+        &mut self.model
+    }
+
+    /// The GPU copies the state into its snapshot buffers at the start of
+    /// the batch's own submission ([`Rollback::run`]), so saving costs no
+    /// submission of its own; here only the parity and count are kept.
+    fn save(&mut self) {
+        self.saved = (self.parity, self.substeps);
+    }
+
+    fn run(&mut self, substeps: u64) -> Result<(), BackendError> {
+        let first = self.substeps;
+        // The host's model closes the re-seated contacts as the GPU will,
+        // which says for how many substeps the reseat pass is needed.
+        let closing = self.model.close_reseats(substeps, |_, _| ());
+        let fuse = self.fuses() && self.timestamps.is_none();
+        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        // A batch can fail part way: keep the state it started from.
+        let [saved_x, saved_v] = &self.buffers.snapshot;
+        encoder.copy_buffer_to_buffer(&self.buffers.x[self.parity.x], 0, saved_x, 0, saved_x.size());
+        encoder.copy_buffer_to_buffer(&self.buffers.v[self.parity.v], 0, saved_v, 0, saved_v.size());
+        let mut parity = self.parity;
+        match self.timestamps.take() {
+            None => {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                for s in 0..substeps {
+                    parity = self.substep_plan(parity, fuse, s < closing, &mut |d| d.record(&mut pass));
+                }
+                self.check_dispatch(parity).record(&mut pass);
+            }
+            Some(mut timestamps) => {
+                for s in 0..substeps {
+                    parity = self.substep_plan(parity, false, s < closing, &mut |d| {
+                        timestamps.record(&self.gpu, &mut encoder, d)
+                    });
+                }
+                timestamps.record(&self.gpu, &mut encoder, &self.check_dispatch(parity));
+                timestamps.resolve(&self.gpu.device, &mut encoder);
+                self.timestamps = Some(timestamps);
+            }
+        }
+        self.record_status(&mut encoder);
+        self.gpu.queue.submit([encoder.finish()]);
+        self.parity = parity;
+        self.substeps += substeps;
+        self.check_status(first, self.substeps)
+    }
+
+    fn restore(&mut self) -> Result<(), BackendError> {
+        let (parity, substeps) = self.saved;
+        let [saved_x, saved_v] = &self.buffers.snapshot;
+        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(saved_x, 0, &self.buffers.x[parity.x], 0, saved_x.size());
+        encoder.copy_buffer_to_buffer(saved_v, 0, &self.buffers.v[parity.v], 0, saved_v.size());
+        self.gpu.queue.submit([encoder.finish()]);
+        (self.parity, self.substeps) = (parity, substeps);
+        // The GPU's copies of re-seated rests moved on with the batch.
+        if !self.model.reseating().is_empty() {
+            self.upload_contacts();
+        }
+        finish(&self.gpu)
+    }
+}

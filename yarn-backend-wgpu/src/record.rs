@@ -1,0 +1,137 @@
+//! What one substep dispatches, in order, on a loaded fabric: the plan
+//! that [`GpuFabric`] records into one compute pass for an advance, into
+//! one timestamped pass each for the stage counters, or one kind at a time
+//! for the per-pass timing runs.
+//!
+//! This module owns the order of a substep's dispatches and which stages
+//! each covers; it does not submit or read anything back.
+
+use yarn_model::Stage;
+
+use crate::Mode;
+use crate::bindings::{Parity, forces_kernel};
+use crate::fabric::GpuFabric;
+
+/// One dispatch of a substep.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Dispatch<'a> {
+    /// The pass's name in the stage counters.
+    pub(crate) pass: &'static str,
+    /// The stages it covers.
+    pub(crate) stages: &'static [Stage],
+    pub(crate) pipeline: &'a wgpu::ComputePipeline,
+    pub(crate) group: &'a wgpu::BindGroup,
+    pub(crate) workgroups: (u32, u32),
+}
+
+impl Dispatch<'_> {
+    /// Record this dispatch into `pass`.
+    pub(crate) fn record(&self, pass: &mut wgpu::ComputePass<'_>) {
+        pass.set_pipeline(self.pipeline);
+        pass.set_bind_group(0, self.group, &[]);
+        pass.dispatch_workgroups(self.workgroups.0, self.workgroups.1, 1);
+    }
+}
+
+const FUSED: &[Stage] = &[Stage::Forces, Stage::Friction, Stage::Move];
+const FORCES: &[Stage] = &[Stage::Forces];
+const FORCES_AND_MOVE: &[Stage] = &[Stage::Forces, Stage::Move];
+/// `friction.wgsl` computes each node's friction and moves it.
+const FRICTION_AND_MOVE: &[Stage] = &[Stage::Friction, Stage::Move];
+const PINS: &[Stage] = &[Stage::Pins];
+const RESEAT: &[Stage] = &[Stage::Reseat];
+const CHECK: &[Stage] = &[Stage::Check];
+
+impl GpuFabric {
+    /// Workgroups for `threads` threads (one, if even that does not fit:
+    /// load refused such fabrics).
+    fn workgroups(&self, threads: usize) -> (u32, u32) {
+        self.gpu.groups(threads as u32).unwrap_or((1, 1))
+    }
+
+    /// Whether an advance runs gather mode's substep with friction as one
+    /// dispatch (`fused.wgsl`) at this size.
+    pub(crate) fn fuses(&self) -> bool {
+        self.mode == Mode::Gather && self.model.coeffs().friction > 0.0 && self.model.node_count() < self.fuse_below
+    }
+
+    /// Hand each dispatch of one substep from `at` to `each`, in order:
+    /// fused when `fuse`, otherwise the mode's forces pass, friction (when
+    /// on), pins (when any), and the reseat pass when `reseat`. Returns the
+    /// parity after the substep.
+    pub(crate) fn substep_plan<'s>(
+        &'s self,
+        at: Parity,
+        fuse: bool,
+        reseat: bool,
+        each: &mut impl FnMut(&Dispatch<'s>),
+    ) -> Parity {
+        let pipelines = &self.gpu.pipelines;
+        let groups = &self.groups;
+        let nodes = self.workgroups(self.model.node_count());
+        let friction = self.model.coeffs().friction > 0.0;
+        let mut next = at;
+        if fuse {
+            let group = groups.fused.at(at);
+            each(&Dispatch {
+                pass: "fused.wgsl",
+                stages: FUSED,
+                pipeline: &pipelines.fused.entries[0],
+                group,
+                workgroups: nodes,
+            });
+            next = Parity { x: 1 - at.x, v: 1 - at.v };
+        } else {
+            let forces = forces_kernel(self.mode, pipelines, &self.buffers);
+            let group = groups.step.at(at);
+            if let Some(scatter) = forces.scatter {
+                let workgroups = self.workgroups(self.model.node_count().max(self.model.contacts().len()));
+                each(&Dispatch { pass: "fixed.wgsl scatter", stages: FORCES, pipeline: scatter, group, workgroups });
+            }
+            let stages = if friction { FORCES } else { FORCES_AND_MOVE };
+            each(&Dispatch { pass: forces.step_name, stages, pipeline: forces.step, group, workgroups: nodes });
+            if friction {
+                let group = groups.friction.at(at);
+                let pipeline = &pipelines.friction.entries[0];
+                each(&Dispatch {
+                    pass: "friction.wgsl",
+                    stages: FRICTION_AND_MOVE,
+                    pipeline,
+                    group,
+                    workgroups: nodes,
+                });
+                next.v = 1 - at.v;
+            }
+            next.x = 1 - at.x;
+        }
+        if let Some(workgroups) =
+            (self.buffers.pin_count > 0).then(|| self.gpu.groups(self.buffers.pin_count)).flatten()
+        {
+            let group = groups.pins.at(next);
+            each(&Dispatch {
+                pass: "pins.wgsl",
+                stages: PINS,
+                pipeline: &pipelines.pins.entries[0],
+                group,
+                workgroups,
+            });
+        }
+        if reseat {
+            let workgroups = self.gpu.groups(self.buffers.reseat_count).unwrap_or((1, 1));
+            let (pipeline, group) = (&pipelines.reseat.entries[0], &groups.reseat);
+            each(&Dispatch { pass: "reseat.wgsl", stages: RESEAT, pipeline, group, workgroups });
+        }
+        next
+    }
+
+    /// The divergence check at the end of a batch, at parity `at`.
+    pub(crate) fn check_dispatch(&self, at: Parity) -> Dispatch<'_> {
+        Dispatch {
+            pass: "check.wgsl",
+            stages: CHECK,
+            pipeline: &self.gpu.pipelines.check.entries[0],
+            group: self.groups.check.at(at),
+            workgroups: self.workgroups(self.model.node_count()),
+        }
+    }
+}
