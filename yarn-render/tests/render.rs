@@ -104,7 +104,65 @@ fn positions_on_the_gpu_draw_like_positions_read_back() {
         usage: yarn_backend_wgpu::wgpu::BufferUsages::STORAGE,
         mapped_at_creation: false,
     });
-    assert!(matches!(renderer.render_gpu(&small, &rest, radius, &SMALL), Err(RenderError::Device(_))));
+    assert!(matches!(
+        renderer.render_gpu(&small, &rest, radius, &SMALL),
+        Err(RenderError::PositionBufferTooSmall { bytes: 16, .. })
+    ));
+}
+
+/// A position buffer too small for the yarn is refused by name, with its
+/// size, the size needed and the node count, before anything is recorded.
+#[test]
+fn a_position_buffer_too_small_for_the_yarn_is_refused_by_name() {
+    use yarn_backend_wgpu::wgpu;
+    let Ok(gpu) = Gpu::new() else {
+        assert!(std::env::var_os("CI").is_none(), "CI is set, so the GPU tests must run");
+        eprintln!("SKIPPING render test: no adapter");
+        return;
+    };
+    let renderer = Renderer::new(&gpu);
+    let (positions, radius) = patch(3, 3);
+    let nodes = positions.len();
+    let yarn = renderer.yarn(&positions, radius).expect("yarn");
+    // One node short of a vec4<f32> per node.
+    let short = gpu.device().create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: (nodes as u64 - 1) * 16,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    let target = gpu.device().create_texture(&wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d { width: SMALL.width, height: SMALL.height, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[],
+    });
+    let mut encoder = gpu.device().create_command_encoder(&Default::default());
+    let error = renderer
+        .draw(&mut encoder, &target.create_view(&Default::default()), &short, &yarn, &SMALL)
+        .expect_err("a buffer one node short must be refused");
+    let RenderError::PositionBufferTooSmall { bytes, needed, nodes: named } = error else {
+        panic!("expected PositionBufferTooSmall, got {error:?}");
+    };
+    assert_eq!((bytes, needed, named), ((nodes as u64 - 1) * 16, nodes as u64 * 16, nodes));
+    let message = error.to_string();
+    assert!(message.contains(&format!("{bytes} bytes")) && message.contains(&format!("{nodes} nodes")), "{message}");
+    // The same buffer through the offscreen path, and a buffer of the right size draws.
+    assert!(matches!(
+        renderer.render_gpu(&short, &positions, radius, &SMALL),
+        Err(RenderError::PositionBufferTooSmall { bytes: refused, nodes: counted, .. }) if refused == bytes && counted == nodes
+    ));
+    let exact = gpu.device().create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: nodes as u64 * 16,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    assert!(renderer.render_gpu(&exact, &positions, radius, &SMALL).is_ok());
 }
 
 #[test]
