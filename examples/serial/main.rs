@@ -1,5 +1,5 @@
-//! Relax a stockinette patch on the serial reference backend and print its
-//! energy as it falls.
+//! Relax a stockinette patch on the single-threaded CPU backend and print
+//! its energy as it falls.
 //!
 //! Run: `cargo run --release --example serial`
 

@@ -1,9 +1,10 @@
 //! CPU backends for yarnify.
 //!
-//! - [`Serial`]: SPEC §4 on one thread, in `f32` (the reference for the
-//!   other `f32` backends) or `f64` (the ground truth for accuracy
-//!   figures). Its passes run over the state stored by component, in blocks
-//!   whose loops the compiler vectorises.
+//! - [`Serial`]: SPEC §4 on one thread, in `f32` (the fast CPU backend,
+//!   which `Rayon` and the GPU's gather mode reproduce bit for bit) or
+//!   `f64` (the ground truth for accuracy figures). Its passes run over the
+//!   state stored by component, in blocks whose loops the compiler
+//!   vectorises.
 //! - [`Rayon`]: the same passes with each pass's blocks spread over a rayon
 //!   thread pool, in `f32`.
 //! - [`Reference`]: [`yarn_model::step::substep`] as written, element by
@@ -385,6 +386,50 @@ mod tests {
         let moved = b.positions.iter().zip(fabric.positions()).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
         let worst = a.positions.iter().zip(&b.positions).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
         assert!(moved > 1e-2 && worst < 1e-9, "moved {moved}, differ by {worst:e}");
+    }
+
+    /// The stage counters time every pass and change nothing: a timed
+    /// advance ends bit for bit where an untimed one does, with friction
+    /// (four passes) and without (the move fused into the block pass).
+    #[test]
+    fn timed_advance_matches_advance_and_names_every_pass() {
+        fn check<B: Backend>(make: impl Fn() -> B, friction: f64) {
+            let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
+            let params = Params { friction, gravity: 9.81, ..Params::default() };
+            let pins = [Pin { node: 0, target: fabric.positions()[0] }];
+            let run = |timed: bool| {
+                let mut backend = make();
+                backend.load(&fabric, &params).unwrap();
+                backend.set_pins(&pins).unwrap();
+                let times = if timed {
+                    Some(backend.advance_timed(40).unwrap())
+                } else {
+                    backend.advance(40).map(|()| None).unwrap()
+                };
+                (backend.state().unwrap(), times)
+            };
+            let (plain, _) = run(false);
+            let (timed, times) = run(true);
+            let name = make().name();
+            assert_eq!(plain, timed, "{name}: timing changed the result");
+            let times = times.expect("timed");
+            let passes: Vec<&str> = times.parts.iter().map(|p| p.pass).collect();
+            let expected: &[&str] = if friction > 0.0 {
+                &["contact forces", "block forces", "friction", "move", "pins", "reseat", "sleep"]
+            } else {
+                &["contact forces", "block forces", "pins", "reseat", "sleep"]
+            };
+            assert_eq!(passes, expected, "{name} at μ = {friction}");
+            let block = &times.parts[1];
+            assert_eq!(block.stages.contains(&Stage::Move), friction == 0.0, "{name}: {block:?}");
+            assert_eq!(times.substeps, 40);
+            assert!(times.total_seconds() > 0.0 && times.total_seconds() <= times.wall_seconds, "{times:?}");
+        }
+        for friction in [0.3, 0.0] {
+            check(Serial::<f32>::new, friction);
+            check(Serial::<f64>::new, friction);
+            check(|| Rayon::with_threads(2).unwrap(), friction);
+        }
     }
 
     #[test]

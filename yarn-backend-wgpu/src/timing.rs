@@ -127,19 +127,22 @@ impl GpuFabric {
             result?;
             (TimingMethod::GpuTimestamps, recorded.parts(&self.gpu)?)
         } else {
+            // The passes to time are those the batch ran: the reseat pass
+            // among them if a contact was closing when it started.
+            let reseat = !self.model.reseating().is_empty();
             self.advance(substeps)?;
-            (TimingMethod::GpuPassRuns, self.time_each_pass(substeps)?)
+            (TimingMethod::GpuPassRuns, self.time_each_pass(substeps, reseat)?)
         };
         let wall_seconds = started.elapsed().as_secs_f64();
         Ok(StageTimes { substeps, method, parts, wall_seconds, note })
     }
 
-    /// Dispatch each kind of pass of one unfused substep, and the check,
-    /// `repeats` times alone from the current state, timing each by the
-    /// wall clock; then put the state, the status, the accumulators and
-    /// the re-seated rests back as they were.
-    fn time_each_pass(&mut self, repeats: u64) -> Result<Vec<StagePart>, BackendError> {
-        let reseat = !self.model.reseating().is_empty();
+    /// Dispatch each kind of pass of one unfused substep (with the reseat
+    /// pass when `reseat`), and the check, `repeats` times alone from the
+    /// current state, timing each by the wall clock; then put the state,
+    /// the status, the accumulators and the re-seated rests back as they
+    /// were.
+    fn time_each_pass(&mut self, repeats: u64, reseat: bool) -> Result<Vec<StagePart>, BackendError> {
         let mut parts = Vec::new();
         {
             let mut plan: Vec<Dispatch<'_>> = Vec::new();

@@ -5,6 +5,7 @@
 use std::sync::{Arc, OnceLock};
 
 use yarn_backend_wgpu::{Gpu, Mode, Wgpu};
+use yarn_model::stages::TimingMethod;
 use yarn_model::{Backend, BackendError, Params, State, V3};
 use yarn_topology::{Chart, Fabric, Geometry};
 
@@ -158,4 +159,66 @@ fn a_lost_device_is_an_error_and_the_last_good_state_stays() {
     }
     assert!(matches!(backend.state(), Err(BackendError::Device(_))));
     assert_eq!(backend.last_good_state(), Some(&checkpoint), "the last good state was lost with the device");
+}
+
+/// The stage counters time the passes without changing the result: in
+/// both modes, by timestamps (where the adapter has them) and by per-pass
+/// runs, a timed advance ends bit for bit where an untimed one does, every
+/// pass of the substep is named, and a fused substep says it was timed as
+/// its unfused passes. Contacts revived half way keep the reseat pass
+/// running, which the per-pass runs must put back.
+#[test]
+fn timed_advance_matches_advance_and_names_every_pass() {
+    let Some(gpu) = gpu() else { return };
+    let fabric = patch();
+    let contacts = fabric.contacts().len();
+    let pins = [yarn_topology::Pin { node: 0, target: fabric.positions()[0] }];
+    let params = Params { gravity: 9.81, ..Params::default() };
+    let run = |mode: Mode, timed: Option<bool>| {
+        let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), mode);
+        backend.load(&fabric, &params).unwrap();
+        backend.set_pins(&pins).unwrap();
+        backend.set_contacts_alive(&vec![false; contacts]).unwrap();
+        backend.advance(30).unwrap();
+        backend.set_contacts_alive(&vec![true; contacts]).unwrap();
+        let times = match timed {
+            Some(timestamps) => {
+                backend.set_timestamps(timestamps);
+                Some(backend.advance_timed(20).unwrap())
+            }
+            None => {
+                backend.advance(20).unwrap();
+                None
+            }
+        };
+        backend.advance(10).unwrap();
+        (backend.state().unwrap(), times)
+    };
+    for mode in [Mode::Gather, Mode::FixedPointAtomic] {
+        let (plain, _) = run(mode, None);
+        for timestamps in [true, false] {
+            let (timed, times) = run(mode, Some(timestamps));
+            let times = times.expect("timed");
+            assert_eq!(plain, timed, "{mode:?} (timestamps {timestamps}): timing changed the result");
+            let method =
+                if timestamps && gpu.timestamps() { TimingMethod::GpuTimestamps } else { TimingMethod::GpuPassRuns };
+            assert_eq!(times.method, method);
+            let passes: Vec<&str> = times.parts.iter().map(|p| p.pass).collect();
+            let expected: &[&str] = match mode {
+                Mode::Gather => &["gather.wgsl step", "friction.wgsl", "pins.wgsl", "reseat.wgsl", "check.wgsl"],
+                Mode::FixedPointAtomic => &[
+                    "fixed.wgsl scatter",
+                    "fixed.wgsl step",
+                    "friction.wgsl",
+                    "pins.wgsl",
+                    "reseat.wgsl",
+                    "check.wgsl",
+                ],
+            };
+            assert_eq!(passes, expected, "{mode:?} (timestamps {timestamps})");
+            assert!(times.parts.iter().all(|p| p.seconds >= 0.0 && p.seconds.is_finite()), "{times:?}");
+            assert!(times.total_seconds() > 0.0, "{times:?}");
+            assert_eq!(times.note.is_some(), mode == Mode::Gather, "only gather fuses at 72 nodes: {:?}", times.note);
+        }
+    }
 }

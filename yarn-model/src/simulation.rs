@@ -123,3 +123,116 @@ impl<B: Backend> Simulation<B> {
         &mut self.backend
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use yarn_topology::{Chart, Geometry};
+
+    use super::*;
+    use crate::{Model, V3, step};
+
+    /// A backend stricter than [`Params::validate`]: it refuses friction
+    /// above 1, as a device might refuse what the model allows.
+    #[derive(Debug, Default)]
+    struct Picky {
+        loaded: Option<(Model<f64>, State<f64>)>,
+    }
+
+    impl Picky {
+        fn loaded(&mut self) -> Result<&mut (Model<f64>, State<f64>), BackendError> {
+            self.loaded.as_mut().ok_or(BackendError::NotLoaded)
+        }
+    }
+
+    impl Backend for Picky {
+        type Real = f64;
+
+        fn name(&self) -> String {
+            "picky".into()
+        }
+
+        fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError> {
+            self.loaded = Some((Model::new(fabric, params)?, State::at_rest(fabric)));
+            Ok(())
+        }
+
+        fn set_params(&mut self, params: &Params) -> Result<(), BackendError> {
+            if params.friction > 1.0 {
+                return Err(BackendError::Device("this device allows friction up to 1".into()));
+            }
+            self.loaded()?.0.set_params(params)
+        }
+
+        fn set_pins(&mut self, pins: &[Pin]) -> Result<(), BackendError> {
+            self.loaded()?.0.set_pins(pins)
+        }
+
+        fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {
+            let (model, state) = self.loaded()?;
+            model.set_contacts_alive(alive, &state.positions)
+        }
+
+        fn write_state(&mut self, state: &State<f64>) -> Result<(), BackendError> {
+            self.loaded()?.1.clone_from(state);
+            Ok(())
+        }
+
+        fn read_state(&mut self, state: &mut State<f64>) -> Result<(), BackendError> {
+            state.clone_from(&self.loaded()?.1);
+            Ok(())
+        }
+
+        fn compute_forces(&mut self, forces: &mut Vec<V3<f64>>) -> Result<(), BackendError> {
+            let (model, state) = self.loaded()?;
+            step::accumulate_forces(model, &state.positions, forces);
+            Ok(())
+        }
+
+        fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
+            let (model, state) = self.loaded()?;
+            let mut scratch = step::Scratch::default();
+            for _ in 0..substeps {
+                step::substep(model, state, &mut scratch);
+                model.close_reseats(1, |_, _| ());
+            }
+            Ok(())
+        }
+
+        fn model(&self) -> Result<&Model<f64>, BackendError> {
+            self.loaded.as_ref().map(|(model, _)| model).ok_or(BackendError::NotLoaded)
+        }
+    }
+
+    /// Regression: the simulation kept a copy of the parameters and updated
+    /// it before the backend accepted them, so a refused change was still
+    /// reported (and measured) as in force.
+    #[test]
+    fn parameters_a_backend_refuses_are_not_reported_in_force() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::default()).unwrap();
+        let mut sim = Simulation::new(Picky::default(), fabric, Params::default()).unwrap();
+        let refused = Params { friction: 1.5, ..Params::default() };
+        refused.validate().expect("the model itself allows it");
+        assert!(sim.set_params(refused).is_err());
+        assert_eq!(sim.params().unwrap().friction, Params::default().friction);
+        sim.set_params(Params { friction: 0.5, ..Params::default() }).unwrap();
+        assert_eq!(sim.params().unwrap().friction, 0.5);
+    }
+
+    /// Energy is measured against the backend's own model: a contact it
+    /// released stops counting, and reviving it (re-seated at its length)
+    /// adds nothing.
+    #[test]
+    fn energy_follows_the_backends_liveness_and_reseats() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::default()).unwrap();
+        let contacts = fabric.contacts().len();
+        let mut sim = Simulation::new(Picky::default(), fabric, Params::default()).unwrap();
+        sim.set_contacts_alive(&vec![false; contacts]).unwrap();
+        sim.advance(200).unwrap();
+        let released = sim.energy().unwrap();
+        assert_eq!(released.contact, 0.0, "released contacts still counted: {released:?}");
+        sim.set_contacts_alive(&vec![true; contacts]).unwrap();
+        let revived = sim.energy().unwrap();
+        assert!(revived.contact.abs() < 1e-12, "revival added {} of contact energy", revived.contact);
+        assert!(!sim.backend_mut().model().unwrap().reseating().is_empty(), "nothing drifted to re-seat");
+    }
+}
