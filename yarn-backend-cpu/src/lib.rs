@@ -233,7 +233,7 @@ impl<T: Real> Backend for Reference<T> {
     }
 
     fn model(&self) -> Result<&Model<T>, BackendError> {
-        self.loaded.as_ref().map(|l| &l.model).ok_or(BackendError::NotLoaded)
+        self.loaded.as_ref().map(|loaded| &loaded.model).ok_or(BackendError::NotLoaded)
     }
 
     /// One part: the element-by-element substep is one function

@@ -26,8 +26,9 @@ pub(crate) struct Parity {
 pub(crate) struct ByParity([[wgpu::BindGroup; 2]; 2]);
 
 impl ByParity {
-    fn new(make: impl Fn(usize, usize) -> wgpu::BindGroup) -> Self {
-        Self([[make(0, 0), make(0, 1)], [make(1, 0), make(1, 1)]])
+    fn new(make: impl Fn(Parity) -> wgpu::BindGroup) -> Self {
+        let at = |x, v| make(Parity { x, v });
+        Self([[at(0, 0), at(0, 1)], [at(1, 0), at(1, 1)]])
     }
 
     pub(crate) fn at(&self, parity: Parity) -> &wgpu::BindGroup {
@@ -135,33 +136,40 @@ impl Groups {
         let pipelines = &gpu.pipelines;
         let (x, v) = (&buffers.x, &buffers.v);
         let forces = forces_kernel(mode, pipelines, buffers);
-        let forces_pass = |label, px: usize, pv: usize, out: &wgpu::Buffer| {
-            let mut bound = vec![&buffers.params, &x[px], &v[pv], out];
+        let forces_pass = |label, at: Parity, out: &wgpu::Buffer| {
+            let mut bound = vec![&buffers.params, &x[at.x], &v[at.v], out];
             bound.extend(forces.bindings.iter().flatten());
             bind(gpu, forces.layout, label, &bound)
         };
         Self {
-            step: ByParity::new(|px, pv| forces_pass("step", px, pv, &x[1 - px])),
-            forces_only: ByParity::new(|px, pv| forces_pass("forces", px, pv, &buffers.forces)),
-            friction: ByParity::new(|px, pv| {
-                let bound =
-                    [&buffers.params, &x[px], &v[pv], &x[1 - px], &v[1 - pv], &buffers.start, &buffers.incident];
-                bind(gpu, &pipelines.friction.layout, "friction", &bound)
-            }),
-            pins: ByParity::new(|px, pv| {
-                bind(gpu, &pipelines.pins.layout, "pins", &[&buffers.params, &x[px], &v[pv], &buffers.pins])
-            }),
-            check: ByParity::new(|px, pv| {
-                bind(gpu, &pipelines.check.layout, "check", &[&buffers.params, &x[px], &v[pv], &buffers.status])
-            }),
-            reseat: reseat_group(gpu, buffers),
-            fused: ByParity::new(|px, pv| {
+            step: ByParity::new(|at| forces_pass("step", at, &x[1 - at.x])),
+            forces_only: ByParity::new(|at| forces_pass("forces", at, &buffers.forces)),
+            friction: ByParity::new(|at| {
                 let bound = [
                     &buffers.params,
-                    &x[px],
-                    &v[pv],
-                    &x[1 - px],
-                    &v[1 - pv],
+                    &x[at.x],
+                    &v[at.v],
+                    &x[1 - at.x],
+                    &v[1 - at.v],
+                    &buffers.start,
+                    &buffers.incident,
+                ];
+                bind(gpu, &pipelines.friction.layout, "friction", &bound)
+            }),
+            pins: ByParity::new(|at| {
+                bind(gpu, &pipelines.pins.layout, "pins", &[&buffers.params, &x[at.x], &v[at.v], &buffers.pins])
+            }),
+            check: ByParity::new(|at| {
+                bind(gpu, &pipelines.check.layout, "check", &[&buffers.params, &x[at.x], &v[at.v], &buffers.status])
+            }),
+            reseat: reseat_group(gpu, buffers),
+            fused: ByParity::new(|at| {
+                let bound = [
+                    &buffers.params,
+                    &x[at.x],
+                    &v[at.v],
+                    &x[1 - at.x],
+                    &v[1 - at.v],
                     &buffers.chain,
                     &buffers.start,
                     &buffers.incident,

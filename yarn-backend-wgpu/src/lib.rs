@@ -160,7 +160,7 @@ impl Wgpu {
     /// when the device is lost and the GPU's copy with it. `None` before
     /// load.
     pub fn last_good_state(&self) -> Option<&Checkpoint> {
-        self.loaded.as_ref().map(|l| &l.checkpoint)
+        self.loaded.as_ref().map(|loaded| &loaded.checkpoint)
     }
 
     /// Fuse gather mode's substep with friction into one dispatch only
@@ -284,7 +284,7 @@ impl Backend for Wgpu {
     }
 
     fn model(&self) -> Result<&Model<f32>, BackendError> {
-        self.loaded.as_ref().map(|l| &l.model).ok_or(BackendError::NotLoaded)
+        self.loaded.as_ref().map(|loaded| &loaded.model).ok_or(BackendError::NotLoaded)
     }
 
     /// As the trait says, by timestamp queries where the device has them
