@@ -66,7 +66,7 @@ mod rayon_backend;
 pub use rayon_backend::Rayon;
 
 use fabric::{CpuFabric, Exec};
-use yarn_model::stages::{Stage, StagePart, StageTimes, TimingMethod};
+use yarn_model::stages::StageTimes;
 use yarn_model::{Backend, BackendError, Model, Params, Real, Rollback, State, V3, advance_with_rollback, step};
 use yarn_topology::{Fabric, Pin};
 
@@ -235,30 +235,12 @@ impl<T: Real> Backend for Reference<T> {
     fn model(&self) -> Result<&Model<T>, BackendError> {
         self.loaded.as_ref().map(|loaded| &loaded.model).ok_or(BackendError::NotLoaded)
     }
-
-    /// One part: the element-by-element substep is one function
-    /// ([`step::substep`]), with the re-seats and the divergence check.
-    fn advance_timed(&mut self, substeps: u64) -> Result<StageTimes, BackendError> {
-        let started = std::time::Instant::now();
-        self.advance(substeps)?;
-        let seconds = started.elapsed().as_secs_f64();
-        Ok(StageTimes {
-            substeps,
-            method: TimingMethod::CpuTimers,
-            parts: vec![StagePart {
-                pass: "step::substep",
-                stages: vec![Stage::Forces, Stage::Friction, Stage::Move, Stage::Pins, Stage::Reseat, Stage::Check],
-                seconds,
-            }],
-            wall_seconds: seconds,
-            note: None,
-        })
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use yarn_model::Stage;
     use yarn_topology::{Chart, Geometry};
 
     fn patch() -> Fabric {
