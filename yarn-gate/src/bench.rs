@@ -1,13 +1,158 @@
 //! `yarn-gate bench`: cost per node per substep of each backend over square
-//! patches, as the median of repeated timed runs after a warm-up.
+//! patches, as the median of repeated timed runs after a warm-up; and, with
+//! `--stages`, where a substep's time goes, pass by pass.
+//!
+//! This module owns the command ([`BenchArgs`]), the timing and its tables.
+//! It knows backends only through [`Backend`]: how a backend splits its
+//! substep into passes, and how it times them, is the backend's
+//! ([`Backend::advance_timed`]).
 
+use std::fmt::Write as _;
 use std::time::Instant;
 
 use serde::Serialize;
-use yarn_model::{Backend, BackendError, Params};
+use yarn_backend_wgpu::Gpu;
+use yarn_model::stages::StageTimes;
+use yarn_model::{Backend, Params};
 use yarn_topology::{Chart, Fabric, Geometry, Pin, Side};
 
 use crate::GateError;
+use crate::backends::{BackendWork, with_backend};
+use crate::cli::{Outcome, TIMED_RUNS, counts, with_bar};
+
+/// `yarn-gate bench`: time each backend at each size.
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    /// Backends to measure, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "serial-f32,serial-f64,rayon")]
+    backend: Vec<String>,
+    /// Patch sides in stitches, comma-separated (8 = 8x8 = 512 nodes).
+    #[arg(long, value_delimiter = ',', default_value = "8,16,32,64")]
+    sizes: Vec<usize>,
+    /// Threads for the rayon backend; 0 uses one per core.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Timed runs per row; the median is reported.
+    #[arg(long, default_value_t = 7)]
+    repeats: usize,
+    /// Friction coefficient μ of the scene; 0 turns the friction pass off
+    /// [default: the model's default].
+    #[arg(long)]
+    friction: Option<f64>,
+    /// Gravity of the scene (model units per s²).
+    #[arg(long, default_value_t = 0.0)]
+    gravity: f64,
+    /// Hold each patch's top row in place, as a drape does.
+    #[arg(long)]
+    pin_top: bool,
+    /// Fraction of the contacts to release first, the top rows' (as after
+    /// unravelling).
+    #[arg(long, default_value_t = 0.0)]
+    dead: f64,
+    /// Let blocks of nodes slower than this sleep (CPU backends; 0: never).
+    #[arg(long, default_value_t = 0.0)]
+    sleep: f64,
+    /// Substeps to run before timing, so the fabric settles.
+    #[arg(long, default_value_t = 0)]
+    settle: u64,
+    /// Also time each pass of the substep: after a backend's timed runs at
+    /// a size, run as many substeps again --repeats times with the
+    /// backend's stage counters on (CPU timers, GPU timestamps, or per-pass
+    /// runs where the GPU has none), and report per pass the stages it
+    /// covers, its median µs per substep and its share of the passes'
+    /// total, in a table after the main one (with --json, under `stages`
+    /// in each row).
+    #[arg(long)]
+    stages: bool,
+    /// Print a JSON array of rows instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+impl BenchArgs {
+    /// Time every backend named at every size. A GPU backend without an
+    /// adapter is an error here, not left out: a bench asked for it.
+    ///
+    /// # Errors
+    /// A bad size, an unknown backend, or a backend failure.
+    pub fn run(&self) -> Result<Outcome, GateError> {
+        let defaults = Params::default();
+        let params = Params {
+            friction: self.friction.unwrap_or(defaults.friction),
+            gravity: self.gravity,
+            sleep_speed: self.sleep,
+            ..defaults
+        };
+        let config = BenchConfig {
+            sides: self.sizes.clone(),
+            repeats: self.repeats.max(1),
+            params,
+            pin_top: self.pin_top,
+            dead: self.dead,
+            settle: self.settle,
+            stages: self.stages,
+            ..BenchConfig::default()
+        };
+        let mut benchmark = Benchmark { config: &config };
+        let rows = self
+            .backend
+            .iter()
+            .map(|name| with_backend(name, self.threads, &mut benchmark))
+            .collect::<Result<Vec<_>, _>>()?
+            .concat();
+        if self.backend.iter().any(|b| b.starts_with("wgpu")) {
+            // The memory-bound ceiling, measured in the same run.
+            if let Err(e) = print_gpu_floors(&rows) {
+                eprintln!("copy bandwidth not measured: {e}");
+            }
+        }
+        Ok(Outcome::json_or(&rows, self.json, || table(&rows) + &stages_table(&rows)))
+    }
+}
+
+/// [`bench`] on one backend, with a progress bar of its timed runs.
+#[derive(Debug)]
+pub(crate) struct Benchmark<'a> {
+    /// What to time.
+    pub(crate) config: &'a BenchConfig,
+}
+
+impl BackendWork for Benchmark<'_> {
+    type Output = Vec<BenchRow>;
+
+    fn run<B: Backend>(&mut self, name: &str, mut backend: B) -> Result<Vec<BenchRow>, GateError> {
+        with_bar(0, TIMED_RUNS, name, |bar| bench(&mut backend, self.config, &mut counts(bar)))
+    }
+}
+
+/// Print what bounds the GPU rows: a copy pass's bandwidth over a 1 GiB
+/// buffer, an empty dispatch's cost, and a copy of one node buffer (16
+/// bytes a node) at each size benched, which is the least a pass over that
+/// fabric's state can take.
+fn print_gpu_floors(rows: &[BenchRow]) -> Result<(), String> {
+    let gpu = Gpu::new().map_err(|e| e.to_string())?;
+    let (bytes, rate) = gpu.copy_bandwidth(1 << 30, 9)?;
+    let dispatch = gpu.dispatch_overhead(9)?;
+    eprintln!(
+        "{}: a copy pass moves {:.0} GB/s (read + write, {} MiB buffer); an empty dispatch costs {:.2} µs",
+        gpu.adapter(),
+        rate / 1e9,
+        bytes >> 20,
+        dispatch * 1e6
+    );
+    let sizes: std::collections::BTreeSet<usize> =
+        rows.iter().filter(|r| r.backend.starts_with("wgpu")).map(|r| r.nodes).collect();
+    for nodes in sizes {
+        let (bytes, rate) = gpu.copy_bandwidth(nodes as u64 * 16, 9)?;
+        eprintln!(
+            "  copying one node buffer of {nodes} nodes ({} KiB): {:.2} µs a pass, {:.0} GB/s",
+            bytes >> 10,
+            2.0 * bytes as f64 / rate * 1e6,
+            rate / 1e9
+        );
+    }
+    Ok(())
+}
 
 /// How the benchmark runs.
 #[derive(Debug, Clone, PartialEq)]
@@ -30,6 +175,10 @@ pub struct BenchConfig {
     /// Substeps run before timing, to let the fabric settle (the warm-up
     /// is a quarter of a run otherwise).
     pub settle: u64,
+    /// After the timed runs at each size, time the passes of as many
+    /// substeps again, `repeats` times, with [`Backend::advance_timed`]
+    /// ([`BenchRow::stages`]).
+    pub stages: bool,
 }
 
 impl Default for BenchConfig {
@@ -44,6 +193,7 @@ impl Default for BenchConfig {
             pin_top: false,
             dead: 0.0,
             settle: 0,
+            stages: false,
         }
     }
 }
@@ -81,10 +231,93 @@ pub struct BenchRow {
     pub ns_max: f64,
     /// Median substeps per second.
     pub substeps_per_s: f64,
+    /// Where the substeps' time went, pass by pass, when
+    /// [`BenchConfig::stages`] asked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stages: Option<StageReport>,
+}
+
+/// Where a row's substeps spent their time, pass by pass: the median of
+/// repeated [`Backend::advance_timed`] calls.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StageReport {
+    /// How the backend took the times
+    /// ([`yarn_model::stages::TimingMethod::name`]).
+    pub method: &'static str,
+    /// Wall microseconds per substep of a timed call, timing included
+    /// (median over the calls).
+    pub wall_us_per_substep: f64,
+    /// Set when the passes timed are not those `advance` runs (a GPU
+    /// substep fused into one dispatch, timed as its unfused passes).
+    pub note: Option<String>,
+    /// Every pass, in the order a substep runs them.
+    pub parts: Vec<PassShare>,
+}
+
+/// One pass of a [`StageReport`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PassShare {
+    /// The pass, e.g. `"block forces"` or `"friction.wgsl"`.
+    pub pass: &'static str,
+    /// The stages it covers ([`yarn_model::Stage::name`]).
+    pub stages: Vec<&'static str>,
+    /// Median microseconds per substep.
+    pub us_per_substep: f64,
+    /// Its fraction of the passes' total (the shares sum to 1).
+    pub share: f64,
+}
+
+impl StageReport {
+    /// The per-pass medians of `calls`, timed calls of the same substeps on
+    /// one backend; a pass missing from a call counts 0 s in it (a re-seat
+    /// pass runs only while contacts close). `None` without calls.
+    pub fn median_of(calls: &[StageTimes]) -> Option<Self> {
+        let first = calls.first()?;
+        let mut passes = Vec::new();
+        for part in calls.iter().flat_map(|call| &call.parts) {
+            if !passes.contains(&(part.pass, &part.stages)) {
+                passes.push((part.pass, &part.stages));
+            }
+        }
+        let seconds: Vec<f64> = passes
+            .iter()
+            .map(|&(pass, stages)| {
+                median(calls.iter().map(|call| {
+                    call.parts.iter().filter(|p| p.pass == pass && p.stages == *stages).map(|p| p.seconds).sum()
+                }))
+            })
+            .collect();
+        let total: f64 = seconds.iter().sum();
+        let micros = |seconds: f64| 1e6 * seconds / first.substeps.max(1) as f64;
+        let parts = passes
+            .iter()
+            .zip(&seconds)
+            .map(|(&(pass, stages), &seconds)| PassShare {
+                pass,
+                stages: stages.iter().map(|stage| stage.name()).collect(),
+                us_per_substep: micros(seconds),
+                // All zero (a clock too coarse for the passes): even shares.
+                share: if total > 0.0 { seconds / total } else { 1.0 / passes.len() as f64 },
+            })
+            .collect();
+        Some(Self {
+            method: first.method.name(),
+            wall_us_per_substep: micros(median(calls.iter().map(|call| call.wall_seconds))),
+            note: first.note.clone(),
+            parts,
+        })
+    }
+}
+
+/// The median of `values` (the upper one of an even count; 0 for none).
+pub(crate) fn median(values: impl Iterator<Item = f64>) -> f64 {
+    let mut values: Vec<f64> = values.collect();
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(0.0)
 }
 
 /// Benchmark one backend over every size in `config`. `progress(done,
-/// total)` counts timed runs.
+/// total)` counts timed runs, the stage-timed ones among them.
 ///
 /// # Errors
 /// [`GateError`] for a bad size or a backend failure.
@@ -93,9 +326,15 @@ pub fn bench<B: Backend>(
     config: &BenchConfig,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<BenchRow>, GateError> {
-    let total = (config.sides.len() * config.repeats) as u64;
+    let stage_calls = if config.stages { config.repeats } else { 0 };
+    let total = (config.sides.len() * (config.repeats + stage_calls)) as u64;
+    let mut done = 0;
+    let mut count_one = || {
+        done += 1;
+        progress(done, total);
+    };
     let mut rows = Vec::with_capacity(config.sides.len());
-    for (k, &side) in config.sides.iter().enumerate() {
+    for &side in &config.sides {
         let fabric = Fabric::from_chart(&Chart::stockinette(side, side)?, &Geometry::default())?;
         let nodes = fabric.node_count();
         backend.load(&fabric, &config.params)?;
@@ -115,17 +354,20 @@ pub fn bench<B: Backend>(
         let substeps = (config.work_per_run / nodes as u64).max(50);
         // Warm-up: caches, the thread pool, and the release transient.
         backend.advance(config.settle.max(substeps / 4 + 1))?;
-        let mut times = (0..config.repeats)
-            .map(|r| {
-                let start = Instant::now();
-                backend.advance(substeps)?;
-                let elapsed = start.elapsed().as_secs_f64();
-                progress((k * config.repeats + r + 1) as u64, total);
-                Ok(elapsed)
-            })
-            .collect::<Result<Vec<f64>, BackendError>>()?;
+        let mut times = Vec::with_capacity(config.repeats);
+        for _ in 0..config.repeats {
+            let start = Instant::now();
+            backend.advance(substeps)?;
+            times.push(start.elapsed().as_secs_f64());
+            count_one();
+        }
+        let mut calls = Vec::with_capacity(stage_calls);
+        for _ in 0..stage_calls {
+            calls.push(backend.advance_timed(substeps)?);
+            count_one();
+        }
         times.sort_by(f64::total_cmp);
-        let median = times[times.len() / 2];
+        let median_time = times[times.len() / 2];
         let per = |t: f64| t * 1e9 / (substeps as f64 * nodes as f64);
         rows.push(BenchRow {
             backend: backend.name(),
@@ -139,10 +381,11 @@ pub fn bench<B: Backend>(
             pins: pins.len(),
             dead_contacts: contacts - alive_contacts,
             sleep_speed: config.params.sleep_speed,
-            ns_per_node_substep: per(median),
+            ns_per_node_substep: per(median_time),
             ns_min: per(times[0]),
             ns_max: per(times[times.len() - 1]),
-            substeps_per_s: substeps as f64 / median,
+            substeps_per_s: substeps as f64 / median_time,
+            stages: StageReport::median_of(&calls),
         });
     }
     Ok(rows)
@@ -174,4 +417,104 @@ pub fn table(rows: &[BenchRow]) -> String {
         );
     }
     out
+}
+
+/// The rows' stage reports as tables, one block per backend and size
+/// (empty when no row has one).
+pub fn stages_table(rows: &[BenchRow]) -> String {
+    let mut out = String::new();
+    for row in rows {
+        let Some(stages) = &row.stages else { continue };
+        let _ = writeln!(
+            out,
+            "\nstages of {} at {} ({} nodes), by {}; the timed call took {:.3} µs a substep",
+            row.backend, row.size, row.nodes, stages.method, stages.wall_us_per_substep
+        );
+        let _ = writeln!(out, "  {:<18} {:<40} {:>12} {:>7}", "pass", "stages", "µs/substep", "share");
+        for part in &stages.parts {
+            let _ = writeln!(
+                out,
+                "  {:<18} {:<40} {:>12.3} {:>6.1}%",
+                part.pass,
+                part.stages.join("+"),
+                part.us_per_substep,
+                100.0 * part.share
+            );
+        }
+        if let Some(note) = &stages.note {
+            let _ = writeln!(out, "  note: {note}");
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use yarn_model::Stage;
+    use yarn_model::stages::{StagePart, TimingMethod};
+
+    /// A call of 100 substeps that took `wall` s, with a forces pass of
+    /// `forces` s, a fused pass, and a pins pass of `pins` s if it ran.
+    fn call(forces: f64, pins: Option<f64>, wall: f64) -> StageTimes {
+        let part = |pass, stages: &[Stage], seconds| StagePart { pass, stages: stages.to_vec(), seconds };
+        let mut parts = vec![
+            part("block forces", &[Stage::Forces], forces),
+            part("block forces", &[Stage::Forces, Stage::Move], 1e-3),
+        ];
+        parts.extend(pins.map(|seconds| part("pins", &[Stage::Pins], seconds)));
+        StageTimes { substeps: 100, method: TimingMethod::CpuTimers, parts, wall_seconds: wall, note: Some("n".into()) }
+    }
+
+    #[test]
+    fn stage_medians_are_taken_per_pass_and_their_shares_sum_to_one() {
+        assert_eq!(StageReport::median_of(&[]), None);
+        let calls = [call(1e-3, Some(1e-4), 5e-3), call(3e-3, None, 4e-3), call(2e-3, Some(3e-4), 6e-3)];
+        let report = StageReport::median_of(&calls).expect("three calls");
+        assert_eq!(report.method, "cpu timers");
+        assert_eq!(report.note.as_deref(), Some("n"));
+        assert!((report.wall_us_per_substep - 50.0).abs() < 1e-9, "{report:?}");
+        let passes: Vec<(&str, String)> = report.parts.iter().map(|p| (p.pass, p.stages.join("+"))).collect();
+        assert_eq!(
+            passes,
+            [("block forces", "forces".into()), ("block forces", "forces+move".into()), ("pins", "pins".into())],
+            "a pass under two stage sets is two parts"
+        );
+        // Medians of (1, 3, 2) ms, (1, 1, 1) ms, and (0.1, 0, 0.3) ms: a
+        // pass missing from a call took no time in it.
+        let micros: Vec<f64> = report.parts.iter().map(|p| p.us_per_substep).collect();
+        for (got, want) in micros.iter().zip([20.0, 10.0, 1.0]) {
+            assert!((got - want).abs() < 1e-9, "{micros:?}");
+        }
+        let shares: f64 = report.parts.iter().map(|p| p.share).sum();
+        assert!((shares - 1.0).abs() < 1e-12 && (report.parts[0].share - 20.0 / 31.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_stage_table_has_a_block_per_row_that_has_stages() {
+        let row = |stages| BenchRow {
+            backend: "serial-f32".into(),
+            threads: 1,
+            size: "3x3".into(),
+            nodes: 72,
+            contacts: 12,
+            substeps: 100,
+            friction: 0.3,
+            gravity: 0.0,
+            pins: 0,
+            dead_contacts: 0,
+            sleep_speed: 0.0,
+            ns_per_node_substep: 1.0,
+            ns_min: 1.0,
+            ns_max: 1.0,
+            substeps_per_s: 1.0,
+            stages,
+        };
+        assert_eq!(stages_table(&[row(None)]), "");
+        let text = stages_table(&[row(StageReport::median_of(&[call(1e-3, Some(1e-4), 5e-3)])), row(None)]);
+        assert_eq!(text.matches("stages of serial-f32 at 3x3 (72 nodes), by cpu timers").count(), 1, "{text}");
+        assert!(text.contains("forces+move") && text.contains("  note: n\n"), "{text}");
+        let without = serde_json::to_value(row(None)).expect("serialises");
+        assert!(without.get("stages").is_none(), "{without}");
+    }
 }

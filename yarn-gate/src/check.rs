@@ -1,6 +1,10 @@
 //! The `check` gate (SPEC §6): relax a free patch, then read dissipation,
 //! curl and anisotropy, each against its pass criterion and beside the
 //! paper's figure.
+//!
+//! This module owns the criteria, the report and the command
+//! ([`CheckArgs`]); the measurements are [`metrics`]'s, and it knows a
+//! backend only through [`Backend`].
 
 use serde::Serialize;
 use yarn_model::statics::{self, StaticOptions};
@@ -8,7 +12,72 @@ use yarn_model::{Backend, Model, Params, State, step};
 use yarn_topology::{Chart, Fabric, Geometry};
 
 use crate::GateError;
+use crate::backends::{BackendWork, with_backend};
+use crate::cli::{Outcome, SUBSTEPS, parse_size, phases, with_bar};
 use crate::metrics::{self, Axis, Curl, Relaxation, Sample, Stiffness};
+
+/// `yarn-gate check`: run the gate once and judge it.
+#[derive(Debug, clap::Args)]
+pub struct CheckArgs {
+    /// Patch size in stitches, WIDTHxHEIGHT.
+    #[arg(long, default_value = "16x16", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Substeps of free relaxation; each stiffness probe holds as long.
+    #[arg(long, default_value_t = 12_000)]
+    steps: u64,
+    /// Backend: serial (f64, the ground truth), serial-f32, rayon, wgpu
+    /// (gather), wgpu-fixed (f32), or reference-f32 / reference-f64 (the
+    /// element-by-element substep).
+    #[arg(long, default_value = "serial")]
+    backend: String,
+    /// Rest-curl fraction κ; 1 gives a patch that should read flat.
+    #[arg(long)]
+    rest_curl: Option<f64>,
+    /// How to bring the patch to rest: `dynamic` (the damped dynamics for
+    /// --steps substeps on --backend), or `static` (an energy minimum by a
+    /// quasi-static solve in f64, no friction; --steps and --backend are
+    /// not used).
+    #[arg(long, default_value = "dynamic", value_parser = ["dynamic", "static"])]
+    solver: String,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+impl CheckArgs {
+    /// Run the gate; the outcome passes only if every criterion does.
+    ///
+    /// # Errors
+    /// As [`run_check`] and [`run_static_check`], and an unknown backend.
+    pub fn run(&self) -> Result<Outcome, GateError> {
+        let params = Params { rest_curl: self.rest_curl.unwrap_or(Params::gate().rest_curl), ..Params::gate() };
+        let config =
+            CheckConfig { width: self.size.0, height: self.size.1, steps: self.steps, pull_steps: self.steps, params };
+        let report = with_bar(self.steps, SUBSTEPS, "", |bar| {
+            let progress = &mut phases(bar);
+            if self.solver == "static" {
+                run_static_check(&config, &StaticOptions::default(), progress)
+            } else {
+                with_backend(&self.backend, 0, &mut Gate { config: &config, progress })
+            }
+        })?;
+        Ok(Outcome::json_or(&report, self.json, || report.table()).verdict(report.pass))
+    }
+}
+
+/// [`run_check`] on one backend.
+struct Gate<'a, 'p> {
+    config: &'a CheckConfig,
+    progress: &'p mut dyn FnMut(&'static str, u64, u64),
+}
+
+impl BackendWork for Gate<'_, '_> {
+    type Output = CheckReport;
+
+    fn run<B: Backend>(&mut self, _name: &str, backend: B) -> Result<CheckReport, GateError> {
+        run_check(backend, self.config, self.progress)
+    }
+}
 
 /// Final max speed must fall below this fraction of its peak during the
 /// release. The peak is the yardstick SPEC §6 suggests: it is what the

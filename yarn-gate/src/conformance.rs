@@ -355,7 +355,7 @@ pub fn f32_drift(fabric: &Fabric, params: &Params, steps: u64) -> Result<Drift, 
     let r = fabric.yarn_radius();
     let diffs: Vec<f64> = a.positions.iter().zip(&b.positions).map(|(p, q)| (p - q).norm() / r).collect();
     let model = double.model()?;
-    let (ea, eb) = (step::energy(&model, &a).total(), step::energy(&model, &b).total());
+    let (ea, eb) = (step::energy(model, &a).total(), step::energy(model, &b).total());
     Ok(Drift {
         steps,
         max_position: diffs.iter().copied().fold(0.0, f64::max),

@@ -2,6 +2,10 @@
 //! for each accumulation mode: the force field after one accumulation and
 //! a 120-substep trajectory of the gate's patch; and the renderer, drawing
 //! the gather trajectory's end.
+//!
+//! This module owns the bounds, the report and the command
+//! ([`GpucheckArgs`]). It opens the one adapter itself rather than going
+//! through the command line's backend names: both modes must share it.
 
 use std::sync::Arc;
 
@@ -13,7 +17,31 @@ use yarn_render::{Renderer, View};
 use yarn_topology::{Chart, Fabric, Geometry};
 
 use crate::GateError;
+use crate::cli::{Outcome, parse_size};
 use crate::conformance::TRAJECTORY_STEPS;
+
+/// `yarn-gate gpucheck`: check this machine's adapter.
+#[derive(Debug, clap::Args)]
+pub struct GpucheckArgs {
+    /// Patch size in stitches, WIDTHxHEIGHT.
+    #[arg(long, default_value = "16x16", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+impl GpucheckArgs {
+    /// Run the check; the outcome passes only if both modes and the drawing
+    /// do.
+    ///
+    /// # Errors
+    /// No adapter, or as [`run_gpucheck`].
+    pub fn run(&self) -> Result<Outcome, GateError> {
+        let report = run_gpucheck(&Gpu::new()?, self.size.0, self.size.1)?;
+        Ok(Outcome::json_or(&report, self.json, || report.table()).verdict(report.pass))
+    }
+}
 
 /// Gather's force error bound, relative to the largest force: the same
 /// sums in the same order as `Serial`, so only the GPU's own `sqrt` and

@@ -6,17 +6,29 @@
 //! ([`mod@bench`]), and the `yarn-gate` command-line tool. It
 //! drives backends only through the [`yarn_model::Backend`] trait, so every
 //! backend is measured by the same code.
+//!
+//! Each command of the tool lives in the module of its library code: its
+//! arguments (`CheckArgs` in [`check`], and so on) and a `run` that returns
+//! an [`Outcome`]. The binary only parses, dispatches and prints.
 
 #![forbid(unsafe_code)]
 
+mod backends;
 pub mod bench;
 pub mod check;
+mod cli;
 pub mod conformance;
 pub mod gpucheck;
 pub mod metrics;
 pub mod pareto;
+mod plot;
 pub mod plotdata;
+pub mod render;
 pub mod stress;
+
+pub use cli::Outcome;
+
+use std::path::Path;
 
 use yarn_model::BackendError;
 use yarn_topology::TopologyError;
@@ -69,4 +81,12 @@ pub enum GateError {
         /// The names accepted.
         known: String,
     },
+}
+
+impl GateError {
+    /// The error of a file or folder at `path` that could not be written
+    /// (figures, tables, meshes all fail this way).
+    pub(crate) fn io(path: &Path, reason: impl std::fmt::Display) -> Self {
+        GateError::Io { path: path.display().to_string(), reason: reason.to_string() }
+    }
 }

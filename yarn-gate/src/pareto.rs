@@ -8,19 +8,200 @@
 //! Every problem is driven on a fixed control clock ([`CONTROL`]): pins
 //! move, and states are compared, only at control ticks, so every substep
 //! h = CONTROL / n meets them exactly.
+//!
+//! This module owns the problems, the sweep over configurations, the front,
+//! the recommendation, their table, CSV and plot, and the command
+//! ([`ParetoArgs`]). How the plot is drawn is the `plot` module's, and it
+//! knows a backend only through [`Backend`].
 
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use indicatif::ProgressBar;
 use nalgebra::Vector3;
 use plotters::prelude::*;
 use serde::Serialize;
+use yarn_backend_cpu::Serial;
+use yarn_backend_wgpu::GpuError;
 use yarn_model::{Backend, Params};
 use yarn_topology::{Chart, Fabric, Geometry, Pin, Side};
 
 use crate::GateError;
-use crate::plotdata::{PanelAxes, canvas, distinct, log_log_panel, panel_legend};
+use crate::backends::{BackendWork, for_each_backend, left_out_warning};
+use crate::bench::median;
+use crate::cli::{Outcome, parse_size, with_bar};
+use crate::plot::{PanelAxes, canvas, distinct, log_log_panel, panel_legend, plot_error};
+
+/// `yarn-gate pareto`: every configuration on every problem, against the
+/// reference.
+#[derive(Debug, clap::Args)]
+pub struct ParetoArgs {
+    /// Backends, comma-separated; GPU ones are left out, with a warning,
+    /// when there is no adapter.
+    #[arg(long, value_delimiter = ',', default_value = "serial-f64,serial-f32,rayon,wgpu,wgpu-fixed")]
+    backend: Vec<String>,
+    /// Patch size in stitches, WIDTHxHEIGHT.
+    #[arg(long, default_value = "16x16", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Simulated seconds per problem.
+    #[arg(long, default_value_t = 1.0)]
+    duration: f64,
+    /// Substeps per 1/150 s control tick to try, comma-separated: h =
+    /// 1/(150 N) s, so 10 is the paper's 1/1500.
+    #[arg(long, value_delimiter = ',', default_value = "2,3,5,10,20,40")]
+    substeps: Vec<u32>,
+    /// Timed runs per configuration; the median wall time is reported.
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
+    /// Folder for pareto.csv and pareto.png (created if missing).
+    #[arg(long, default_value = "pareto")]
+    out: PathBuf,
+    /// Print one JSON object (rows, recommended, reference_self_error)
+    /// instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Checkpoints a run is compared at, evenly spaced over its ticks.
+const CHECKPOINTS: u32 = 4;
+
+impl ParetoArgs {
+    /// Solve the references, sweep every configuration, mark each
+    /// problem's front and the recommendation, and write the CSV and plot.
+    ///
+    /// # Errors
+    /// A bad size, an unknown backend, a backend failure other than a
+    /// refused substep, or a file that cannot be written.
+    pub fn run(&self) -> Result<Outcome, GateError> {
+        let ticks = (self.duration / CONTROL).round().max(1.0) as u32;
+        let runs = Problem::ALL.len() * REFERENCE_SUBSTEPS.len() + self.backend.len() * self.runs_per_backend();
+        let (reference_self_error, mut rows) =
+            with_bar(runs as u64, "{msg:>24} [{bar:40}] {pos}/{len} runs ({eta})", "", |bar| {
+                let (references, reference_self_error) = self.references(ticks, bar)?;
+                let mut sweep = Sweep { args: self, references: &references, ticks, bar };
+                let rows = for_each_backend(&self.backend, 0, &mut sweep)?.concat();
+                Ok::<_, GateError>((reference_self_error, rows))
+            })?;
+        mark_front(&mut rows);
+        let recommended = recommend(&mut rows);
+        let written = write(&self.out, &rows)?.iter().map(|p| p.display().to_string()).collect();
+        let report = ParetoReport { rows, recommended, reference_self_error, written };
+        Ok(Outcome::json_or(&report, self.json, || report.text()))
+    }
+
+    /// Timed runs per backend: each substep on each problem, `repeats`
+    /// times.
+    fn runs_per_backend(&self) -> usize {
+        Problem::ALL.len() * self.substeps.len() * self.repeats.max(1)
+    }
+
+    /// Each problem's reference run, and how far the reference is from
+    /// itself at half its substep.
+    fn references(&self, ticks: u32, bar: &ProgressBar) -> Result<(Vec<Run>, BTreeMap<&'static str, f64>), GateError> {
+        let radius = Geometry::default().yarn_radius;
+        let mut references = Vec::new();
+        let mut self_error = BTreeMap::new();
+        for problem in Problem::ALL {
+            bar.set_message(format!("reference {}", problem.name()));
+            let [coarse, fine] =
+                REFERENCE_SUBSTEPS.map(|n| run(&mut Serial::<f64>::new(), problem, self.size, ticks, n, CHECKPOINTS));
+            let (coarse, fine) = (coarse?, fine?);
+            bar.inc(REFERENCE_SUBSTEPS.len() as u64);
+            self_error.insert(problem.name(), errors(&coarse, &fine, radius).0);
+            references.push(coarse);
+        }
+        Ok((references, self_error))
+    }
+}
+
+/// What `pareto` reports (its JSON).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParetoReport {
+    /// Every configuration on every problem, front and recommendation
+    /// marked.
+    pub rows: Vec<ParetoRow>,
+    /// The recommended configuration ([`recommend`]), if any is accurate
+    /// everywhere.
+    pub recommended: Option<String>,
+    /// Per problem, the largest position difference, in yarn radii,
+    /// between the reference and the same run at half its substep.
+    pub reference_self_error: BTreeMap<&'static str, f64>,
+    /// The files written.
+    pub written: Vec<String>,
+}
+
+impl ParetoReport {
+    /// The table, the reference's self-consistency, the recommendation and
+    /// the files written.
+    pub fn text(&self) -> String {
+        let mut out = table(&self.rows);
+        let self_error: Vec<String> =
+            self.reference_self_error.iter().map(|(problem, error)| format!("{problem} {error:.1e}")).collect();
+        let _ = writeln!(
+            out,
+            "reference: serial-f64 at h=1/{:.0}; against h=1/{:.0} it differs by at most (r): {}",
+            150.0 * f64::from(REFERENCE_SUBSTEPS[0]),
+            150.0 * f64::from(REFERENCE_SUBSTEPS[1]),
+            self_error.join(", ")
+        );
+        let _ = match &self.recommended {
+            Some(config) => writeln!(out, "recommended (fastest within {ACCURACY} r everywhere): {config}"),
+            None => writeln!(out, "no configuration is within {ACCURACY} r on every problem"),
+        };
+        for path in &self.written {
+            let _ = writeln!(out, "wrote {path}");
+        }
+        out
+    }
+}
+
+/// Every configuration of one backend on every problem.
+struct Sweep<'a> {
+    args: &'a ParetoArgs,
+    /// Each problem's reference, in [`Problem::ALL`] order.
+    references: &'a [Run],
+    ticks: u32,
+    /// The whole command's bar, across backends.
+    bar: &'a ProgressBar,
+}
+
+impl BackendWork for Sweep<'_> {
+    type Output = Vec<ParetoRow>;
+
+    fn run<B: Backend>(&mut self, name: &str, mut backend: B) -> Result<Vec<ParetoRow>, GateError> {
+        let sim_seconds = CONTROL * f64::from(self.ticks);
+        let mut rows = Vec::new();
+        for &per_tick in &self.args.substeps {
+            let per_tick = per_tick.max(1);
+            let h = CONTROL / f64::from(per_tick);
+            for (problem, reference) in Problem::ALL.into_iter().zip(self.references) {
+                self.bar.set_message(format!("{name} {}", problem.name()));
+                let mut runs = Vec::new();
+                for _ in 0..self.args.repeats.max(1) {
+                    runs.push(match run(&mut backend, problem, self.args.size, self.ticks, per_tick, CHECKPOINTS) {
+                        Ok(measured) => measured,
+                        // An h the parameters refuse: a failed configuration.
+                        Err(GateError::Backend(e)) => Run::failed(e.to_string()),
+                        Err(e) => return Err(e),
+                    });
+                    self.bar.inc(1);
+                }
+                let wall_s_per_sim_s = median(runs.iter().map(|repeat| repeat.wall_s)) / sim_seconds;
+                if let Some(last) = runs.pop() {
+                    rows.push(ParetoRow::new(problem, name, h, wall_s_per_sim_s, last, reference));
+                }
+            }
+        }
+        Ok(rows)
+    }
+
+    fn left_out(&mut self, name: &str, reason: &GpuError) {
+        self.bar.suspend(|| eprintln!("{}", left_out_warning(name, reason)));
+        self.bar.inc(self.args.runs_per_backend() as u64);
+    }
+}
 
 /// The control interval in simulated seconds: pins move and states are
 /// compared on this clock. The paper's h = 1/1500 s is 10 substeps a tick.
@@ -121,6 +302,14 @@ pub struct Run {
     pub failure: Option<String>,
 }
 
+impl Run {
+    /// A run that could not start, for `reason`: infinitely slow and
+    /// infinitely wrong.
+    pub fn failed(reason: String) -> Self {
+        Self { checkpoints: Vec::new(), energies: Vec::new(), wall_s: f64::INFINITY, failure: Some(reason) }
+    }
+}
+
 /// Run `problem` on a `size` patch for `ticks` control ticks at `per_tick`
 /// substeps a tick, reading the state at `checkpoints` evenly spaced ticks.
 ///
@@ -216,6 +405,32 @@ pub struct ParetoRow {
     pub recommended: bool,
     /// Why the run stopped early, if it did.
     pub failure: Option<String>,
+}
+
+impl ParetoRow {
+    /// `backend`'s row at substep `h` on `problem`: `run` (its last repeat)
+    /// measured against `reference` by [`errors`], beside its median wall
+    /// seconds per simulated second. A run beyond [`DIVERGED`] is a
+    /// failure. Neither on the front nor recommended until [`mark_front`]
+    /// and [`recommend`] say so.
+    pub fn new(problem: Problem, backend: &str, h: f64, wall_s_per_sim_s: f64, run: Run, reference: &Run) -> Self {
+        let (pos_err_max, pos_err_rms, energy_err) = errors(&run, reference, Geometry::default().yarn_radius);
+        let failure =
+            run.failure.or_else(|| (!pos_err_max.is_finite()).then(|| format!("diverged: beyond {DIVERGED} r")));
+        Self {
+            problem,
+            config: config_name(backend, h),
+            backend: backend.to_owned(),
+            h,
+            wall_s_per_sim_s,
+            pos_err_max,
+            pos_err_rms,
+            energy_err,
+            on_front: false,
+            recommended: false,
+            failure,
+        }
+    }
 }
 
 /// The configuration label of `backend` at `h`.
@@ -328,8 +543,16 @@ pub fn table(rows: &[ParetoRow]) -> String {
 /// # Errors
 /// When a file cannot be written or the plot cannot be drawn.
 pub fn write(dir: &Path, rows: &[ParetoRow]) -> Result<[PathBuf; 2], GateError> {
-    std::fs::create_dir_all(dir).map_err(|e| crate::plotdata::io(dir, e))?;
+    std::fs::create_dir_all(dir).map_err(|e| GateError::io(dir, e))?;
     let csv_path = dir.join("pareto.csv");
+    std::fs::write(&csv_path, csv(rows)).map_err(|e| GateError::io(&csv_path, e))?;
+    let png_path = dir.join("pareto.png");
+    plot(&png_path, rows)?;
+    Ok([csv_path, png_path])
+}
+
+/// The rows as `pareto.csv`: one line per row after the header.
+pub fn csv(rows: &[ParetoRow]) -> String {
     let mut csv = String::from(
         "problem,config,backend,h,wall_s_per_sim_s,pos_err_max,pos_err_rms,energy_err,on_front,recommended\n",
     );
@@ -349,14 +572,11 @@ pub fn write(dir: &Path, rows: &[ParetoRow]) -> Result<[PathBuf; 2], GateError> 
             r.recommended
         );
     }
-    std::fs::write(&csv_path, csv).map_err(|e| crate::plotdata::io(&csv_path, e))?;
-    let png_path = dir.join("pareto.png");
-    plot(&png_path, rows)?;
-    Ok([csv_path, png_path])
+    csv
 }
 
 fn plot(path: &Path, rows: &[ParetoRow]) -> Result<(), GateError> {
-    let fail = |e: &dyn std::fmt::Display| crate::plotdata::plot_error(path, e);
+    let fail = |e: &dyn std::fmt::Display| plot_error(path, e);
     let root = canvas(path, (1280, 960))?;
     let backends = distinct(rows.iter().map(|r| r.backend.as_str()));
     let colour = |backend: &str| Palette99::pick(backends.iter().position(|b| *b == backend).unwrap_or(0)).to_rgba();
@@ -468,6 +688,73 @@ mod tests {
         assert!(rows.iter().filter(|r| r.recommended).all(|r| r.config == "b h=1"));
         assert_eq!(rows.iter().filter(|r| r.recommended).count(), 2);
         assert!(table(&rows).contains("<- recommended"));
+    }
+
+    /// The front and the recommendation on given timings: the wall times
+    /// are set here and the errors come from [`errors`] of given runs, so
+    /// no clock of a loaded machine decides the front.
+    #[test]
+    fn the_recommended_configuration_is_on_every_front_when_none_is_both_faster_and_more_accurate() {
+        let radius = Geometry::default().yarn_radius;
+        // One node at `error` radii from the reference's, at one checkpoint.
+        let at = |error: f64| Run {
+            checkpoints: vec![vec![Vector3::new(error * radius, 0.0, 0.0)]],
+            energies: vec![1.0],
+            wall_s: 0.0,
+            failure: None,
+        };
+        let reference = at(0.0);
+        // Backend, substeps a tick, wall s per simulated s, and the run.
+        let configurations = [
+            ("serial-f64", 40, 8.0, at(0.001)),
+            ("serial-f32", 10, 2.0, at(0.05)),
+            // Slower and less accurate than serial-f32: beaten.
+            ("wgpu-fixed", 10, 3.0, at(0.08)),
+            // The fastest, but beyond ACCURACY: on the front, not recommended.
+            ("rayon", 2, 0.5, at(0.5)),
+            ("wgpu", 3, 0.2, Run::failed("refused".into())),
+            ("reference-f32", 5, 1.0, at(DIVERGED)),
+        ];
+        let mut rows = Vec::new();
+        for (k, problem) in Problem::ALL.into_iter().enumerate() {
+            // Each problem costs and errs a little differently.
+            let (wall_scale, error_scale) = (1.0 + 0.5 * k as f64, 1.0 + 0.1 * k as f64);
+            for (backend, per_tick, wall, run) in &configurations {
+                let h = CONTROL / f64::from(*per_tick);
+                let mut run = run.clone();
+                run.checkpoints.iter_mut().flatten().for_each(|p| *p *= error_scale);
+                rows.push(ParetoRow::new(problem, backend, h, wall * wall_scale, run, &reference));
+            }
+        }
+        let error = |config: &str| rows.iter().find(|r| r.config == config).map(|r| r.pos_err_max);
+        assert!((error("serial-f32 h=1/1500").unwrap() - 0.05).abs() < 1e-12, "errors() in radii");
+        assert_eq!(error("wgpu h=1/450"), Some(f64::INFINITY));
+        let failures: Vec<&str> = rows.iter().filter_map(|r| r.failure.as_deref()).collect();
+        assert_eq!(failures.len(), 8, "{failures:?}");
+        assert!(failures.iter().filter(|f| f.starts_with("diverged")).count() == 4, "{failures:?}");
+
+        mark_front(&mut rows);
+        assert_eq!(recommend(&mut rows).as_deref(), Some("serial-f32 h=1/1500"));
+        for problem in Problem::ALL {
+            let mine: Vec<&ParetoRow> = rows.iter().filter(|r| r.problem == problem).collect();
+            let Some(best) = mine.iter().find(|r| r.recommended) else { panic!("{problem:?} has no recommended row") };
+            // The premise: nothing here is both faster and more accurate.
+            assert!(
+                !mine.iter().any(|r| r.wall_s_per_sim_s < best.wall_s_per_sim_s && r.pos_err_max < best.pos_err_max),
+                "{problem:?}"
+            );
+            assert!(best.on_front, "{problem:?}: the recommended configuration is off the front");
+            let front: Vec<&str> = mine.iter().filter(|r| r.on_front).map(|r| r.backend.as_str()).collect();
+            assert_eq!(front, ["serial-f64", "serial-f32", "rayon"], "{problem:?}");
+        }
+        let table = table(&rows);
+        assert_eq!(table.matches("yes  <- recommended").count(), 4, "{table}");
+        assert!(!table.contains("no   <- recommended"), "{table}");
+        let csv = csv(&rows);
+        let marked: Vec<&str> = csv.lines().filter(|l| l.ends_with(",true,true")).collect();
+        assert_eq!(marked.len(), 4, "{csv}");
+        assert!(marked.iter().all(|l| l.contains(",serial-f32 h=1/1500,")), "{csv}");
+        assert_eq!(csv.lines().count(), 1 + rows.len());
     }
 
     #[test]

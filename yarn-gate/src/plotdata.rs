@@ -7,118 +7,84 @@
 //! - Figure 4: cost per substep against node count, log-log, one line per
 //!   backend, with an ideal-linear reference.
 //!
-//! Plots use `plotters` with the DejaVu font embedded in the binary, so no
-//! system fonts are needed.
+//! This module owns the command too ([`PlotdataArgs`]); how a figure is
+//! drawn is the `plot` module's, and how figure 4's rows are timed is
+//! [`mod@crate::bench`]'s.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::Once;
 
-use plotters::coord::Shift;
 use plotters::prelude::*;
 use yarn_model::{Backend, Params};
 use yarn_topology::{Chart, Fabric, Geometry};
 
 use crate::GateError;
-use crate::bench::BenchRow;
+use crate::backends::{BackendWork, for_each_backend, with_backend};
+use crate::bench::{BenchConfig, BenchRow, Benchmark};
+use crate::cli::{Outcome, SUBSTEPS, parse_size, phases, with_bar};
 use crate::metrics::{self, Axis, Relaxation, Stiffness};
+use crate::plot::{FONT, canvas, plot_error};
 
 /// Strains of the figure 3 probes.
 pub const STRAINS: [f64; 4] = [0.025, 0.05, 0.075, 0.1];
 
-/// The font family name the plots use.
-pub(crate) const FONT: &str = "yarnify-sans";
-
-pub(crate) fn register_font() {
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| {
-        // The embedded font is a valid TrueType file; if it were not, the
-        // plots would fail with a clear error when drawing text.
-        let _ = plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular());
-    });
+/// `yarn-gate plotdata`: measure the figures' data and write them.
+#[derive(Debug, clap::Args)]
+pub struct PlotdataArgs {
+    /// Folder to write the CSV and PNG files into (created if missing).
+    #[arg(long, default_value = "figures")]
+    out: PathBuf,
+    /// Backend for figures 2 and 3 (see `check --help`).
+    #[arg(long, default_value = "rayon")]
+    backend: String,
+    /// Patch size for figures 2 and 3, WIDTHxHEIGHT.
+    #[arg(long, default_value = "16x16", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Substeps of free relaxation (figure 2).
+    #[arg(long, default_value_t = 12_000)]
+    steps: u64,
+    /// Substeps each stiffness probe holds (figure 3).
+    #[arg(long, default_value_t = 6_000)]
+    pull_steps: u64,
+    /// Backends for figure 4, comma-separated; a GPU one is left out, with
+    /// a warning, when there is no adapter.
+    #[arg(long, value_delimiter = ',', default_value = "serial-f32,rayon,wgpu")]
+    scaling: Vec<String>,
 }
 
-pub(crate) fn io(path: &Path, e: impl std::fmt::Display) -> GateError {
-    GateError::Io { path: path.display().to_string(), reason: e.to_string() }
+impl PlotdataArgs {
+    /// Measure and write the three figures; the outcome names the files
+    /// written.
+    ///
+    /// # Errors
+    /// When a backend fails or a file cannot be written.
+    pub fn run(&self) -> Result<Outcome, GateError> {
+        std::fs::create_dir_all(&self.out).map_err(|e| GateError::io(&self.out, e))?;
+        let (relaxation, probes) = with_bar(0, SUBSTEPS, "", |bar| {
+            with_backend(&self.backend, 0, &mut Measure { args: self, progress: &mut phases(bar) })
+        })?;
+        let mut written = Vec::new();
+        written.extend(figure2(&self.out, &relaxation, Params::gate().substep)?);
+        written.extend(figure3(&self.out, &probes)?);
+        let config = BenchConfig { repeats: 3, work_per_run: 2_000_000, ..BenchConfig::default() };
+        let rows = for_each_backend(&self.scaling, 0, &mut Benchmark { config: &config })?.concat();
+        written.extend(figure4(&self.out, &rows)?);
+        Ok(Outcome::text(written.iter().map(|path| format!("wrote {}\n", path.display())).collect()))
+    }
 }
 
-pub(crate) fn plot_error(path: &Path, e: impl std::fmt::Display) -> GateError {
-    GateError::Render(format!("could not draw {}: {e}", path.display()))
+/// Figures 2 and 3's measurement ([`measure`]) on one backend.
+struct Measure<'a, 'p> {
+    args: &'a PlotdataArgs,
+    progress: &'p mut dyn FnMut(&'static str, u64, u64),
 }
 
-/// A white PNG canvas of `size` pixels at `path`, the font registered.
-pub(crate) fn canvas(path: &Path, size: (u32, u32)) -> Result<DrawingArea<BitMapBackend<'_>, Shift>, GateError> {
-    register_font();
-    let root = BitMapBackend::new(path, size).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| plot_error(path, e))?;
-    Ok(root)
-}
+impl BackendWork for Measure<'_, '_> {
+    type Output = (Relaxation, Vec<Stiffness>);
 
-/// Each backend name once, sorted: the order of a figure's colours.
-pub(crate) fn distinct<'a>(names: impl Iterator<Item = &'a str>) -> Vec<&'a str> {
-    let mut names: Vec<&str> = names.collect();
-    names.sort_unstable();
-    names.dedup();
-    names
-}
-
-/// A log-log chart in one panel of a multi-panel figure.
-pub(crate) type LogLog<'a, 'b> = ChartContext<'a, BitMapBackend<'b>, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>;
-
-/// How a log-log panel is labelled.
-pub(crate) struct PanelAxes<'s> {
-    /// The panel's title.
-    pub(crate) caption: String,
-    /// The axis descriptions, x then y.
-    pub(crate) labels: (&'s str, &'s str),
-    /// Tick labels on each axis.
-    pub(crate) ticks: usize,
-    /// How x tick values are printed (y ticks print as powers of ten).
-    pub(crate) x_format: fn(&f64) -> String,
-}
-
-/// A log-log chart over `x` and `y` on `panel`, with its mesh drawn, for
-/// figures written to `path`.
-pub(crate) fn log_log_panel<'a, 'b>(
-    panel: &'a DrawingArea<BitMapBackend<'b>, plotters::coord::Shift>,
-    path: &Path,
-    axes: &PanelAxes<'_>,
-    x: std::ops::Range<f64>,
-    y: std::ops::Range<f64>,
-) -> Result<LogLog<'a, 'b>, GateError> {
-    let fail = |e: &dyn std::fmt::Display| plot_error(path, e);
-    let mut chart = ChartBuilder::on(panel)
-        .caption(&axes.caption, (FONT, 22))
-        .margin(12)
-        .x_label_area_size(44)
-        .y_label_area_size(72)
-        .build_cartesian_2d(x.log_scale(), y.log_scale())
-        .map_err(|e| fail(&e))?;
-    chart
-        .configure_mesh()
-        .x_labels(axes.ticks)
-        .y_labels(axes.ticks)
-        .x_label_formatter(&axes.x_format)
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .x_desc(axes.labels.0)
-        .y_desc(axes.labels.1)
-        .label_style((FONT, 13))
-        .axis_desc_style((FONT, 15))
-        .draw()
-        .map_err(|e| fail(&e))?;
-    Ok(chart)
-}
-
-/// A panel's legend, in its lower left corner (empty in these figures).
-pub(crate) fn panel_legend<'a, 'b: 'a>(chart: &mut LogLog<'a, 'b>, path: &Path) -> Result<(), GateError> {
-    chart
-        .configure_series_labels()
-        .label_font((FONT, 13))
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::LowerLeft)
-        .draw()
-        .map_err(|e| plot_error(path, e))
+    fn run<B: Backend>(&mut self, _name: &str, mut backend: B) -> Result<Self::Output, GateError> {
+        measure(&mut backend, self.args.size, self.args.steps, self.args.pull_steps, self.progress)
+    }
 }
 
 /// Relax a `width`×`height` patch on `backend` for `steps` substeps, then
@@ -164,7 +130,7 @@ pub fn figure2(dir: &Path, relaxation: &Relaxation, h: f64) -> Result<[PathBuf; 
         let _ = writeln!(csv, "{},{:.6},{:.6},{:.6}", s.substep, s.substep as f64 * h, s.total, s.bend);
     }
     let (csv_path, png_path) = (dir.join("fig2_energy.csv"), dir.join("fig2_energy.png"));
-    std::fs::write(&csv_path, csv).map_err(|e| io(&csv_path, e))?;
+    std::fs::write(&csv_path, csv).map_err(|e| GateError::io(&csv_path, e))?;
     let steps = relaxation.last().substep.max(1) as f64;
     let values = relaxation.trace.iter().flat_map(|s| [s.total, s.bend]).filter(|v| *v > 0.0);
     let (low, high) = values.fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
@@ -204,7 +170,7 @@ pub fn figure3(dir: &Path, probes: &[Stiffness]) -> Result<[PathBuf; 2], GateErr
         );
     }
     let (csv_path, png_path) = (dir.join("fig3_stiffness.csv"), dir.join("fig3_stiffness.png"));
-    std::fs::write(&csv_path, csv).map_err(|e| io(&csv_path, e))?;
+    std::fs::write(&csv_path, csv).map_err(|e| GateError::io(&csv_path, e))?;
     let series = |axis| -> Vec<(f64, f64)> {
         std::iter::once((0.0, 0.0))
             .chain(probes.iter().filter(|p| p.axis == axis).map(|p| (100.0 * p.strain, p.force)))
@@ -250,7 +216,7 @@ pub fn figure4(dir: &Path, rows: &[BenchRow]) -> Result<[PathBuf; 2], GateError>
         );
     }
     let (csv_path, png_path) = (dir.join("fig4_scaling.csv"), dir.join("fig4_scaling.png"));
-    std::fs::write(&csv_path, csv).map_err(|e| io(&csv_path, e))?;
+    std::fs::write(&csv_path, csv).map_err(|e| GateError::io(&csv_path, e))?;
     let mut names: Vec<&str> = rows.iter().map(|r| r.backend.as_str()).collect();
     names.dedup();
     let palette = [RED, BLUE, GREEN, MAGENTA, CYAN, BLACK];
@@ -417,6 +383,7 @@ mod tests {
             ns_min: 0.0,
             ns_max: 0.0,
             substeps_per_s: per_s,
+            stages: None,
         };
         let rows = [row("a", 512, 1e5), row("a", 2048, 2.5e4), row("b", 512, 2e5), row("b", 2048, 1e5)];
         let [csv, png] = figure4(&dir, &rows).unwrap();

@@ -8,9 +8,13 @@
 //! soak runs a patch through random grabs, releases, unravelling and
 //! parameter changes and reports the largest energy it saw and its final
 //! speed.
+//!
+//! This module owns both measurements, their tables and the command
+//! ([`StressArgs`]); how the map is drawn is the `plot` module's, and it
+//! knows a backend only through [`Backend`].
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
 use plotters::prelude::*;
@@ -19,7 +23,98 @@ use yarn_model::{Backend, BackendError, Params, State};
 use yarn_topology::{Chart, Fabric, Geometry, Pin};
 
 use crate::GateError;
-use crate::plotdata::{PanelAxes, canvas, distinct, log_log_panel, panel_legend};
+use crate::backends::{BackendWork, for_each_backend};
+use crate::cli::{Outcome, SUBSTEPS, counts, parse_size, with_bar};
+use crate::plot::{PanelAxes, canvas, distinct, log_log_panel, panel_legend, plot_error};
+
+/// `yarn-gate stress`: the stability map, or a soak.
+#[derive(Debug, clap::Args)]
+pub struct StressArgs {
+    /// Backends, comma-separated; GPU ones are left out, with a warning,
+    /// when there is no adapter.
+    #[arg(long, value_delimiter = ',', default_value = "serial-f32,serial-f64,wgpu")]
+    backend: Vec<String>,
+    /// Patch size for the stability map, WIDTHxHEIGHT.
+    #[arg(long, default_value = "8x8", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Simulated seconds each stability trial runs.
+    #[arg(long, default_value_t = 0.5)]
+    duration: f64,
+    /// Bisection steps on the substep.
+    #[arg(long, default_value_t = 8)]
+    bisections: u32,
+    /// Run a soak of this many substeps on a 16x16 patch instead of the map.
+    #[arg(long)]
+    soak: Option<u64>,
+    /// Folder for stability.png (created if missing).
+    #[arg(long, default_value = "stress")]
+    out: PathBuf,
+    /// Print JSON instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+impl StressArgs {
+    /// The soak when `--soak` is given, the stability map otherwise.
+    ///
+    /// # Errors
+    /// As [`soak`] and [`map`], an unknown backend, or a plot that cannot
+    /// be written.
+    pub fn run(&self) -> Result<Outcome, GateError> {
+        let Some(substeps) = self.soak else { return self.stability_map() };
+        let reports = for_each_backend(&self.backend, 0, &mut Soak { substeps })?;
+        // The table is followed by a blank line, as it always was.
+        Ok(Outcome::json_or(&reports, self.json, || soak_table(&reports) + "\n"))
+    }
+
+    /// Measure the map, draw it, and report it.
+    fn stability_map(&self) -> Result<Outcome, GateError> {
+        let config = StressConfig {
+            size: self.size,
+            duration: self.duration,
+            bisections: self.bisections,
+            ..StressConfig::default()
+        };
+        let rows = for_each_backend(&self.backend, 0, &mut Map { config: &config })?.concat();
+        std::fs::create_dir_all(&self.out).map_err(|e| GateError::io(&self.out, e))?;
+        let png = self.out.join("stability.png");
+        plot(&png, &rows)?;
+        Ok(Outcome::json_or(&rows, self.json, || {
+            let lowest = rows.iter().map(|r| r.ratio).fold(f64::INFINITY, f64::min);
+            format!("{}lowest stable fraction of 2/ω_max: {lowest:.3}\nwrote {}\n", table(&rows), png.display())
+        }))
+    }
+}
+
+/// [`soak`] on one backend, with a progress bar of its substeps.
+struct Soak {
+    substeps: u64,
+}
+
+impl BackendWork for Soak {
+    type Output = SoakReport;
+
+    fn run<B: Backend>(&mut self, name: &str, mut backend: B) -> Result<SoakReport, GateError> {
+        with_bar(self.substeps, SUBSTEPS, name, |bar| {
+            soak(&mut backend, self.substeps, 1, &mut |done| bar.set_position(done))
+        })
+    }
+}
+
+/// [`map`] on one backend, with a progress bar of its cells.
+struct Map<'a> {
+    config: &'a StressConfig,
+}
+
+impl BackendWork for Map<'_> {
+    type Output = Vec<StabilityRow>;
+
+    fn run<B: Backend>(&mut self, name: &str, mut backend: B) -> Result<Vec<StabilityRow>, GateError> {
+        with_bar(0, "{msg:>12} [{bar:40}] {pos}/{len} cells", name, |bar| {
+            map(&mut backend, self.config, &mut counts(bar))
+        })
+    }
+}
 
 /// A parameter the stability map scales.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -261,7 +356,7 @@ pub fn table(rows: &[StabilityRow]) -> String {
 /// # Errors
 /// When the plot cannot be drawn.
 pub fn plot(path: &Path, rows: &[StabilityRow]) -> Result<(), GateError> {
-    let fail = |e: &dyn std::fmt::Display| crate::plotdata::plot_error(path, e);
+    let fail = |e: &dyn std::fmt::Display| plot_error(path, e);
     let root = canvas(path, (1280, 960))?;
     let backends = distinct(rows.iter().map(|r| r.backend.as_str()));
     for (panel, knob) in root.split_evenly((2, 2)).iter().zip(Knob::ALL) {
@@ -328,6 +423,22 @@ pub struct SoakReport {
     pub final_max_speed: f64,
     /// Every position and velocity is finite at the end.
     pub finite: bool,
+}
+
+/// The soak reports as a table.
+pub fn soak_table(reports: &[SoakReport]) -> String {
+    let mut out = format!(
+        "{:<14} {:>10} {:>8} {:>12} {:>16} {:>7}\n",
+        "backend", "substeps", "actions", "max energy", "final max speed", "finite"
+    );
+    for r in reports {
+        let _ = writeln!(
+            out,
+            "{:<14} {:>10} {:>8} {:>12.1} {:>16.3} {:>7}",
+            r.backend, r.substeps, r.actions, r.max_energy, r.final_max_speed, r.finite
+        );
+    }
+    out
 }
 
 /// Run a 16x16 patch for `substeps` substeps in chunks of 100, taking a

@@ -1,0 +1,107 @@
+//! `yarn-gate render`: relax a patch on a backend, then draw its yarn as
+//! tubes into a PNG, and optionally write the tube surface as an OBJ mesh.
+//!
+//! This module owns the command ([`RenderArgs`]) and the relaxation before
+//! drawing. How tubes are swept and shaded is `yarn_render`'s; it draws on
+//! its own GPU context whatever backend relaxed the patch.
+
+use std::path::PathBuf;
+
+use indicatif::ProgressBar;
+use yarn_backend_wgpu::Gpu;
+use yarn_model::{Backend, Params, widen};
+use yarn_render::{Renderer, View, tube_obj};
+use yarn_topology::{Chart, Fabric, Geometry};
+
+use crate::GateError;
+use crate::backends::{BackendWork, with_backend};
+use crate::cli::{Outcome, SUBSTEPS, parse_size, with_bar};
+
+/// `yarn-gate render`: relax, draw, save.
+#[derive(Debug, clap::Args)]
+pub struct RenderArgs {
+    /// Patch size in stitches, WIDTHxHEIGHT.
+    #[arg(long, default_value = "16x16", value_parser = parse_size)]
+    size: (usize, usize),
+    /// Substeps of free relaxation before drawing.
+    #[arg(long, default_value_t = 3_000)]
+    steps: u64,
+    /// Backend for the relaxation (see `check --help`).
+    #[arg(long, default_value = "rayon")]
+    backend: String,
+    /// The PNG to write.
+    #[arg(long, default_value = "fabric.png")]
+    out: PathBuf,
+    /// Also write the tube surface as a Wavefront OBJ mesh here.
+    #[arg(long)]
+    obj: Option<PathBuf>,
+    /// Image size in pixels, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x960", value_parser = parse_size)]
+    image: (usize, usize),
+    /// Camera rotation about the vertical axis, in degrees.
+    #[arg(long, default_value_t = 0.0)]
+    orbit: f32,
+    /// Camera angle above the fabric's plane, in degrees.
+    #[arg(long, default_value_t = 20.0)]
+    elevation: f32,
+}
+
+impl RenderArgs {
+    /// Relax, draw and save; the outcome names the files and how much of
+    /// the frame is yarn.
+    ///
+    /// # Errors
+    /// A bad size, a backend failure, no GPU to draw on, or a file that
+    /// cannot be written.
+    pub fn run(&self) -> Result<Outcome, GateError> {
+        let fabric = Fabric::from_chart(&Chart::stockinette(self.size.0, self.size.1)?, &Geometry::default())?;
+        let positions = with_bar(self.steps, SUBSTEPS, "relaxing", |bar| {
+            with_backend(&self.backend, 0, &mut Relax { fabric: &fabric, steps: self.steps, bar })
+        })?;
+        let radius = fabric.yarn_radius() as f32;
+        let view = View {
+            width: self.image.0 as u32,
+            height: self.image.1 as u32,
+            orbit: self.orbit.to_radians(),
+            elevation: self.elevation.to_radians(),
+            zoom: 1.0,
+        };
+        let frame = Renderer::new(&*Gpu::new()?)
+            .render(&positions, radius, &view)
+            .and_then(|frame| frame.save_png(&self.out).map(|()| frame))
+            .map_err(|e| GateError::Render(e.to_string()))?;
+        let mut stdout =
+            format!("wrote {} ({:.1} % of the frame is yarn)\n", self.out.display(), 100.0 * frame.coverage());
+        if let Some(path) = &self.obj {
+            std::fs::write(path, tube_obj(&positions, radius)).map_err(|e| GateError::io(path, e))?;
+            stdout += &format!("wrote {}\n", path.display());
+        }
+        Ok(Outcome::text(stdout))
+    }
+}
+
+/// Advance a backend from rest by `steps` substeps, moving `bar`, and
+/// hand back the positions in f32.
+struct Relax<'a> {
+    fabric: &'a Fabric,
+    steps: u64,
+    bar: &'a ProgressBar,
+}
+
+impl BackendWork for Relax<'_> {
+    type Output = Vec<[f32; 3]>;
+
+    fn run<B: Backend>(&mut self, _name: &str, mut backend: B) -> Result<Vec<[f32; 3]>, GateError> {
+        backend.load(self.fabric, &Params::gate())?;
+        let chunk = (self.steps / 100).max(1);
+        let mut done = 0;
+        while done < self.steps {
+            let substeps = chunk.min(self.steps - done);
+            backend.advance(substeps)?;
+            done += substeps;
+            self.bar.set_position(done);
+        }
+        let state = backend.state()?;
+        Ok(state.positions.iter().map(widen).map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect())
+    }
+}
