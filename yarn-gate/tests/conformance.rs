@@ -1,5 +1,5 @@
-//! Every backend against the serial f32 reference on random scenes. A new
-//! backend joins with one `conformance!` line.
+//! Every backend against `Reference<f32>`, the substep element by element,
+//! on random scenes. A new backend joins with one `conformance!` line.
 
 use std::sync::{Arc, OnceLock};
 
