@@ -16,6 +16,7 @@ use crate::bindings::{
 };
 use crate::gpu::{Gpu, read_mapped};
 use crate::layout::{DIVERGED, FRICTION_ON, FUSED_FMA, GpuParams, GpuPin, OVERFLOWED};
+use crate::record::Dispatch;
 use crate::timing::Timestamps;
 use crate::{Checkpoint, FIXED_POINT_SCALE, Mode, WORKGROUP};
 
@@ -235,19 +236,21 @@ impl GpuFabric {
         let n = self.model.node_count();
         let kernel = forces_kernel(self.mode, &self.gpu.pipelines, &self.buffers);
         let group = self.groups.forces_only.at(self.parity);
+        let workgroups = |threads: usize| self.gpu.groups(threads as u32).unwrap_or((1, 1));
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
+            let dispatch = |pipeline, threads| Dispatch {
+                pass: "",
+                stages: &[],
+                pipeline,
+                group,
+                workgroups: workgroups(threads),
+            };
             if let Some(scatter) = kernel.scatter {
-                let (gx, gy) = self.gpu.groups(n.max(self.model.contacts().len()) as u32).unwrap_or((1, 1));
-                pass.set_pipeline(scatter);
-                pass.set_bind_group(0, group, &[]);
-                pass.dispatch_workgroups(gx, gy, 1);
+                dispatch(scatter, n.max(self.model.contacts().len())).record(&mut pass);
             }
-            let (gx, gy) = self.gpu.groups(n as u32).unwrap_or((1, 1));
-            pass.set_pipeline(kernel.forces);
-            pass.set_bind_group(0, group, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
+            dispatch(kernel.forces, n).record(&mut pass);
         }
         self.record_status(&mut encoder);
         self.gpu.queue.submit([encoder.finish()]);
