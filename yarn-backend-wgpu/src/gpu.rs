@@ -90,14 +90,32 @@ impl Gpu {
         pollster::block_on(Self::new_async())
     }
 
+    /// [`Gpu::new`] with a device opened at `limits` instead of every limit
+    /// the adapter offers: to see how a fabric fares on a smaller device, or
+    /// to keep a context within a budget. Each limit must be one the
+    /// adapter supports.
+    ///
+    /// # Errors
+    /// As [`Gpu::new`]; [`GpuError::Device`] when the adapter cannot meet
+    /// `limits`.
+    pub fn with_limits(limits: wgpu::Limits) -> Result<Arc<Self>, GpuError> {
+        pollster::block_on(Self::open(Some(limits)))
+    }
+
     /// [`Gpu::new`] without blocking, for the browser.
     ///
     /// # Errors
     /// As [`Gpu::new`].
+    pub async fn new_async() -> Result<Arc<Self>, GpuError> {
+        Self::open(None).await
+    }
+
+    /// Open the default adapter with a device at `limits`, or at every
+    /// limit the adapter offers.
     // In the browser wgpu's handles are neither `Send` nor `Sync`, and
     // nothing is shared across threads there.
     #[cfg_attr(target_arch = "wasm32", allow(clippy::arc_with_non_send_sync))]
-    pub async fn new_async() -> Result<Arc<Self>, GpuError> {
+    async fn open(limits: Option<wgpu::Limits>) -> Result<Arc<Self>, GpuError> {
         // Vulkan, Metal, DX12 or the browser's WebGPU (WGPU_BACKEND overrides):
         // compute needs no GL fallback, and probing for one only adds noise.
         let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
@@ -111,15 +129,15 @@ impl Gpu {
             .await
             .map_err(|e| GpuError::NoAdapter { reason: e.to_string() })?;
         let info = adapter.get_info();
-        // Ask for every limit the adapter offers, so large fabrics fit where
-        // the hardware allows. No feature beyond WebGPU's core is used by a
+        // Unless told otherwise, ask for every limit the adapter offers, so
+        // large fabrics fit where the hardware allows. No feature beyond WebGPU's core is used by a
         // substep; timestamp queries, where the adapter has them, serve only
         // the stage counters.
         let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("yarnify"),
-                required_limits: adapter.limits(),
+                required_limits: limits.unwrap_or_else(|| adapter.limits()),
                 required_features: features,
                 ..Default::default()
             })

@@ -62,6 +62,7 @@ mod gpu;
 mod layout;
 mod record;
 pub mod shaders;
+pub mod testing;
 mod timing;
 
 use std::sync::Arc;

@@ -2,26 +2,17 @@
 //! fixed-point overflow and divergence reports and restores. Agreement with the CPU is the
 //! conformance suite's job (`yarn-gate/tests/conformance.rs`).
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
-use yarn_backend_wgpu::{Gpu, Mode, Wgpu};
+use yarn_backend_wgpu::{Gpu, Mode, Wgpu, testing, wgpu};
 use yarn_model::stages::TimingMethod;
 use yarn_model::{Backend, BackendError, Params, State, V3};
 use yarn_topology::{Chart, Fabric, Geometry};
 
-/// The shared GPU, or `None` (said loudly) when there is no adapter and
-/// `CI` is unset. Under CI a missing adapter fails the tests.
+/// The shared GPU, or `None` with the skip counted when this machine has
+/// no adapter ([`yarn_backend_wgpu::testing`]).
 fn gpu() -> Option<Arc<Gpu>> {
-    static GPU: OnceLock<Option<Arc<Gpu>>> = OnceLock::new();
-    GPU.get_or_init(|| match Gpu::new() {
-        Ok(gpu) => Some(gpu),
-        Err(e) if std::env::var_os("CI").is_none() => {
-            eprintln!("SKIPPING GPU test: {e}");
-            None
-        }
-        Err(e) => panic!("CI is set, so the GPU tests must run, but: {e}"),
-    })
-    .clone()
+    testing::shared_gpu()
 }
 
 fn patch() -> Fabric {
@@ -92,6 +83,52 @@ fn refusals_name_the_problem_and_keep_the_state() {
     let state = backend.state().unwrap();
     assert_eq!(state.positions[4], V3::new(1.0, 2.0, 3.0));
     assert_eq!(state.velocities[4], V3::zeros());
+}
+
+/// A device opened at `full`'s limits with `lower` applied.
+fn lowered(full: &Gpu, lower: impl FnOnce(&mut wgpu::Limits)) -> Arc<Gpu> {
+    let mut limits = full.device().limits();
+    lower(&mut limits);
+    Gpu::with_limits(limits).expect("lower limits than the adapter's open")
+}
+
+/// A fabric over the device's binding or dispatch limit is refused with
+/// `TooLarge` naming the limit and both figures, on devices opened with
+/// lowered limits, and the fabric loaded before stays loaded.
+#[test]
+fn a_fabric_over_the_device_limits_is_refused_by_name() {
+    let Some(full) = gpu() else { return };
+    let (small, large) =
+        (patch(), Fabric::from_chart(&Chart::stockinette(10, 10).unwrap(), &Geometry::default()).unwrap());
+    // 72 nodes of 16 bytes, 1,152 bytes, in a binding of at most 1,024.
+    let narrow = lowered(&full, |l| l.max_storage_buffer_binding_size = 1024);
+    let mut backend = Wgpu::with_gpu(narrow, Mode::Gather);
+    match backend.load(&small, &Params::default()) {
+        Err(BackendError::TooLarge { what, needed, limit, limit_name }) => {
+            assert_eq!((what, needed, limit), ("the node buffer (bytes)", 1152, 1024));
+            assert_eq!(limit_name, "max_storage_buffer_binding_size");
+        }
+        other => panic!("expected TooLarge, got {other:?}"),
+    }
+    assert_eq!(backend.state(), Err(BackendError::NotLoaded));
+    // 800 nodes in a grid of at most 2x2 workgroups of 128 threads.
+    let short = lowered(&full, |l| l.max_compute_workgroups_per_dimension = 2);
+    let mut backend = Wgpu::with_gpu(short, Mode::FixedPointAtomic);
+    backend.load(&small, &Params::default()).unwrap();
+    backend.advance(5).unwrap();
+    let before = backend.state().unwrap();
+    match backend.load(&large, &Params::default()) {
+        Err(BackendError::TooLarge { what, needed, limit, limit_name }) => {
+            assert_eq!(
+                (what, limit, limit_name),
+                ("the dispatch (threads)", 512, "max_compute_workgroups_per_dimension")
+            );
+            assert!(needed >= 800, "{needed} threads");
+        }
+        other => panic!("expected TooLarge, got {other:?}"),
+    }
+    assert_eq!(backend.state().unwrap(), before, "the refused load lost the fabric before it");
+    backend.advance(5).expect("the fabric before runs on");
 }
 
 /// A node flung at an absurd speed, or given a NaN velocity, ends the

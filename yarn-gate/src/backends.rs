@@ -63,24 +63,32 @@ pub(crate) fn with_backend<W: BackendWork>(name: &str, threads: usize, work: &mu
 
 /// Run `work` on each backend of `names` in turn, as [`with_backend`]
 /// does, and collect what it yields; a GPU backend is left out, with a
-/// warning ([`BackendWork::left_out`]), when it finds no adapter.
+/// warning ([`BackendWork::left_out`]), when there is no adapter.
 ///
 /// # Errors
-/// The first error other than a missing GPU.
+/// The first error other than a missing adapter; the missing adapter when
+/// every backend named was left out, since then nothing ran.
 pub(crate) fn for_each_backend<W: BackendWork>(
     names: &[String],
     threads: usize,
     work: &mut W,
 ) -> Result<Vec<W::Output>, GateError> {
     let mut outputs = Vec::with_capacity(names.len());
+    let mut missing = None;
     for name in names {
         match with_backend(name, threads, work) {
             Ok(output) => outputs.push(output),
-            Err(GateError::Gpu(reason)) => work.left_out(name, &reason),
+            Err(GateError::Gpu(reason @ GpuError::NoAdapter { .. })) => {
+                work.left_out(name, &reason);
+                missing = Some(reason);
+            }
             Err(e) => return Err(e),
         }
     }
-    Ok(outputs)
+    match missing {
+        Some(reason) if outputs.is_empty() => Err(GateError::Gpu(reason)),
+        _ => Ok(outputs),
+    }
 }
 
 /// The rayon backend on `threads` threads (0: one per core).

@@ -83,7 +83,18 @@ pub enum GateError {
     },
 }
 
+/// The exit code of a command that could not run because no GPU adapter
+/// exists: `2` is every other error that stops a command, so a script (or
+/// a test) can tell a machine without a GPU from a GPU run that failed.
+pub const NO_ADAPTER_EXIT: u8 = 3;
+
 impl GateError {
+    /// Whether the command stopped because there is no GPU adapter at all
+    /// (see [`NO_ADAPTER_EXIT`]), not because a GPU failed.
+    pub fn is_no_adapter(&self) -> bool {
+        matches!(self, GateError::Gpu(yarn_backend_wgpu::GpuError::NoAdapter { .. }))
+    }
+
     /// The error of a file or folder at `path` that could not be written
     /// (figures, tables, meshes all fail this way).
     pub(crate) fn io(path: &Path, reason: impl std::fmt::Display) -> Self {

@@ -5,6 +5,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use yarn_gate::NO_ADAPTER_EXIT;
 use yarn_gate::bench::BenchArgs;
 use yarn_gate::check::CheckArgs;
 use yarn_gate::gpucheck::GpucheckArgs;
@@ -51,7 +52,8 @@ enum Command {
 }
 
 /// Run the command; exit 0 when it passes, 1 when it runs and fails, 2
-/// when it cannot run.
+/// when it cannot run, and 3 ([`NO_ADAPTER_EXIT`]) when it cannot run for
+/// want of a GPU adapter.
 fn main() -> ExitCode {
     let outcome = match Cli::parse().command {
         Command::Check(args) => args.run(),
@@ -69,7 +71,7 @@ fn main() -> ExitCode {
         }
         Err(e) => {
             eprintln!("error: {e}");
-            ExitCode::from(2)
+            ExitCode::from(if e.is_no_adapter() { NO_ADAPTER_EXIT } else { 2 })
         }
     }
 }

@@ -1,12 +1,13 @@
 //! Every backend against `Reference<f32>`, the substep element by element,
 //! on random scenes. A new backend joins with one `conformance!` line.
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use proptest::prelude::*;
 use yarn_backend_cpu::{Rayon, Serial};
-use yarn_backend_wgpu::{Gpu, Mode, Wgpu};
+use yarn_backend_wgpu::{Gpu, Mode, Wgpu, testing};
 use yarn_gate::conformance::{self, Tolerance, strategy};
+use yarn_model::Backend;
 use yarn_model::Params;
 use yarn_topology::{Chart, Fabric, Geometry};
 
@@ -36,7 +37,8 @@ macro_rules! conformance {
                 #[test]
                 fn trajectory_and_energy(scene in strategy::scene()) {
                     if let Some(make) = $make {
-                        conformance::trajectory_matches_reference(make, &scene, &$tolerance);
+                        let compared = conformance::trajectory_matches_reference(make, &scene, &$tolerance);
+                        prop_assume!(compared.is_some(), "too chaotic to compare with the reference");
                     }
                 }
             }
@@ -44,22 +46,10 @@ macro_rules! conformance {
     };
 }
 
-/// The shared GPU, or `None` (said loudly) when there is no adapter and
-/// `CI` is unset. Under CI a missing adapter fails the tests.
+/// The shared GPU, or `None` with the skip counted when this machine has
+/// no adapter ([`yarn_backend_wgpu::testing`]).
 fn gpu() -> Option<Arc<Gpu>> {
-    static GPU: OnceLock<Option<Arc<Gpu>>> = OnceLock::new();
-    GPU.get_or_init(|| match Gpu::new() {
-        Ok(gpu) => {
-            eprintln!("GPU conformance on {}", gpu.adapter());
-            Some(gpu)
-        }
-        Err(e) if std::env::var_os("CI").is_none() => {
-            eprintln!("SKIPPING the GPU conformance tests: {e}");
-            None
-        }
-        Err(e) => panic!("CI is set, so the GPU tests must run, but: {e}"),
-    })
-    .clone()
+    testing::shared_gpu()
 }
 
 fn cpu<B>(make: impl Fn() -> B) -> Option<impl Fn() -> B> {
@@ -86,6 +76,25 @@ conformance!(
 );
 conformance!(wgpu_fixed_point, wgpu(Mode::FixedPointAtomic), Tolerance::GPU_FIXED_POINT);
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// The GPU gather gives `Serial<f32>`'s forces and trajectory bit for
+    /// bit, fused and as two passes, as the README says of lavapipe and
+    /// the H200: the shaders round every product, root and quotient as the
+    /// CPU does. Sleeping is off: the GPU never sleeps.
+    #[test]
+    fn wgpu_gather_is_serial_f32_bit_for_bit(scene in strategy::scene()) {
+        let Some(gpu) = gpu() else { return Ok(()) };
+        let scene = conformance::Scene { params: Params { sleep_speed: 0.0, ..scene.params }, ..scene };
+        for fuse_below in [yarn_backend_wgpu::FUSE_BELOW, 0] {
+            let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
+            backend.set_fuse_below(fuse_below);
+            conformance::assert_bit_for_bit(backend, Serial::<f32>::new(), &scene);
+        }
+    }
+}
+
 /// Serial f32 against Serial f64 over the gate's 12,000-substep relaxation:
 /// the precision cost of f32, reported. The free patch creeps along soft
 /// modes, so rounding differences grow into visible but bounded drift; the
@@ -106,4 +115,52 @@ fn f32_drift_over_the_gate_relaxation() {
     println!("serial f32 vs f64 after 12000 substeps: {drift:?}");
     assert!(drift.rms_position.is_finite() && drift.rms_position < 5.0, "{drift:?}");
     assert!(drift.energy < 0.2, "{drift:?}");
+}
+
+/// What [`conformance::TRAJECTORY_CEILING`] and
+/// [`conformance::ENERGY_CEILING`] rest on: over 900 random scenes (a fixed
+/// seed), each backend's trajectory and energy errors beside the scene's
+/// own one-ulp sensitivity, printed as the largest and the 99th
+/// percentile. Rerun after a model change:
+/// `cargo test --release -p yarn-gate --test conformance -- --ignored --nocapture measure_trajectory_errors`.
+#[test]
+#[ignore = "a measurement, printed; the checks above assert its bounds"]
+fn measure_trajectory_errors() {
+    use proptest::strategy::ValueTree;
+    use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+    let mut runner = TestRunner::new_with_rng(Config::default(), TestRng::from_seed(RngAlgorithm::ChaCha, &[7; 32]));
+    let scenes: Vec<_> = (0..900).map(|_| strategy::scene().new_tree(&mut runner).unwrap().current()).collect();
+    let summary = |name: &str, values: &mut Vec<f64>| {
+        values.sort_by(f64::total_cmp);
+        let p99 = values[values.len() * 99 / 100];
+        println!("{name:<40} max {:.3e}  p99 {p99:.3e}", values.last().unwrap());
+    };
+    let measure = |name: &str, errors: &dyn Fn(&conformance::Scene) -> conformance::TrajectoryErrors| {
+        let all: Vec<_> = scenes.iter().map(errors).collect();
+        summary(&format!("{name} position (r)"), &mut all.iter().map(|e| e.position).collect());
+        summary(&format!("{name} energy"), &mut all.iter().map(|e| e.energy).collect());
+        let calm: Vec<_> = all.iter().filter(|e| !e.too_chaotic()).collect();
+        let mut ratio: Vec<f64> = calm.iter().map(|e| e.position / e.position_tolerance(&Tolerance::CPU_F32)).collect();
+        summary(&format!("{name} error / tolerance, {} calm scenes", calm.len()), &mut ratio);
+        all
+    };
+    let slept = scenes
+        .iter()
+        .filter(|scene| {
+            let mut backend = Serial::<f32>::new();
+            scene.load(&mut backend).unwrap();
+            (0..conformance::TRAJECTORY_STEPS).any(|_| backend.advance(1).is_ok() && backend.sleeping_blocks() > 0)
+        })
+        .count();
+    println!("scenes in which a block slept: {slept} of {}", scenes.len());
+    let all = measure("serial-f32", &|s| conformance::trajectory_errors(Serial::<f32>::new, s));
+    summary("10x one-ulp sensitivity (r)", &mut all.iter().map(|e| 10.0 * e.position_sensitivity).collect());
+    summary("10x one-ulp energy sensitivity", &mut all.iter().map(|e| 10.0 * e.energy_sensitivity).collect());
+    measure("rayon x3", &|s| conformance::trajectory_errors(|| Rayon::with_threads(3).unwrap(), s));
+    if let Some(gpu) = gpu() {
+        for mode in [Mode::Gather, Mode::FixedPointAtomic] {
+            measure(mode.name(), &|s| conformance::trajectory_errors(|| Wgpu::with_gpu(Arc::clone(&gpu), mode), s));
+        }
+    }
+    println!("ceilings: {} r, energy {}", conformance::TRAJECTORY_CEILING, conformance::ENERGY_CEILING);
 }

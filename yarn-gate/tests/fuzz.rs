@@ -5,8 +5,8 @@
 //! the CPU and GPU backends. Every call must return a value or a typed
 //! error; a panic fails the test. The counts of inputs tried are printed.
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, OnceLock};
 
 use proptest::prelude::*;
 use yarn_backend_cpu::{Reference, Serial};
@@ -107,16 +107,7 @@ static PARTS: AtomicU64 = AtomicU64::new(0);
 static RUNS: AtomicU64 = AtomicU64::new(0);
 
 fn gpu() -> Option<Arc<Gpu>> {
-    static GPU: OnceLock<Option<Arc<Gpu>>> = OnceLock::new();
-    GPU.get_or_init(|| match Gpu::new() {
-        Ok(gpu) => Some(gpu),
-        Err(e) if std::env::var_os("CI").is_none() => {
-            eprintln!("SKIPPING the GPU part of the fuzz test: {e}");
-            None
-        }
-        Err(e) => panic!("CI is set, so the GPU tests must run, but: {e}"),
-    })
-    .clone()
+    yarn_backend_wgpu::testing::shared_gpu()
 }
 
 /// Everything a user can do to a loaded backend, with the fuzzed inputs;

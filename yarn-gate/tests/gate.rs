@@ -1,13 +1,26 @@
 //! The gate itself, run as tests: the default patch must pass, κ = 1 must
 //! read flat, and the CLI must keep its JSON interface and exit codes.
 
-use std::process::Command;
+use std::process::{Command, Output};
 
 use yarn_backend_cpu::Serial;
 use yarn_gate::check::{CheckConfig, MIN_ANISOTROPY, MIN_CURL, run_check};
 use yarn_gate::metrics;
 use yarn_model::{Backend, Params};
 use yarn_topology::{Chart, Fabric, Geometry};
+
+/// Whether a command exited for want of a GPU adapter
+/// ([`yarn_gate::NO_ADAPTER_EXIT`]); the calling test's skip is then
+/// counted, or it fails where the GPU must run
+/// ([`yarn_backend_wgpu::testing::skip`]). Any other failure is the
+/// test's to assert.
+fn no_adapter(output: &Output) -> bool {
+    let missing = output.status.code() == Some(i32::from(yarn_gate::NO_ADAPTER_EXIT));
+    if missing {
+        yarn_backend_wgpu::testing::skip(&String::from_utf8_lossy(&output.stderr));
+    }
+    missing
+}
 
 #[test]
 fn default_patch_passes_the_gate() {
@@ -159,7 +172,7 @@ fn cli_bench_stages_give_each_row_its_passes_by_cpu_timers() {
 /// friction runs fused, so its stages were timed unfused. Not 3x3: bench
 /// gives every run about the same node-substeps, so 72 nodes run 277,777
 /// substeps a call, about 6 minutes on lavapipe against 30 s here. Skips,
-/// loudly, only when there is no adapter and `CI` is unset.
+/// counted, only when there is no adapter.
 #[test]
 fn cli_gpu_bench_stages_name_their_method_and_the_fused_pass() {
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
@@ -167,8 +180,7 @@ fn cli_gpu_bench_stages_name_their_method_and_the_fused_pass() {
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
-    if output.status.code() == Some(2) && std::env::var_os("CI").is_none() {
-        eprintln!("SKIPPING the GPU stage bench: {stderr}");
+    if no_adapter(&output) {
         return;
     }
     assert!(output.status.success(), "{stderr}");
@@ -187,8 +199,8 @@ fn cli_gpu_bench_stages_name_their_method_and_the_fused_pass() {
 
 /// `bench` with a GPU backend prints the ceilings its rows run into: the
 /// copy bandwidth, an empty dispatch, and a copy of one node buffer per
-/// size benched. Skips, loudly, only when there is no adapter and `CI` is
-/// unset.
+/// size benched. Skips, counted, only when there is no
+/// adapter.
 #[test]
 fn cli_gpu_bench_prints_the_floors_per_size() {
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
@@ -196,8 +208,7 @@ fn cli_gpu_bench_prints_the_floors_per_size() {
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
-    if output.status.code() == Some(2) && std::env::var_os("CI").is_none() {
-        eprintln!("SKIPPING the GPU bench: {stderr}");
+    if no_adapter(&output) {
         return;
     }
     assert!(output.status.success(), "{stderr}");
@@ -208,13 +219,12 @@ fn cli_gpu_bench_prints_the_floors_per_size() {
 }
 
 /// `gpucheck` on this machine's adapter: both modes agree with Serial f32
-/// and the JSON carries the documented keys. Skips, loudly, only when there
-/// is no adapter and `CI` is unset.
+/// and the JSON carries the documented keys. Skips, counted, only when there
+/// is no adapter.
 #[test]
 fn cli_gpucheck_passes_and_reports_every_mode() {
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate")).args(["gpucheck", "--json"]).output().unwrap();
-    if output.status.code() == Some(2) && std::env::var_os("CI").is_none() {
-        eprintln!("SKIPPING gpucheck: {}", String::from_utf8_lossy(&output.stderr));
+    if no_adapter(&output) {
         return;
     }
     let report: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
@@ -240,20 +250,19 @@ fn cli_gpucheck_passes_and_reports_every_mode() {
 
 /// A short soak on the GPU, both modes (the long one is `stress --soak
 /// 1000000`): random grabs, releases, re-knitting and parameter changes
-/// end finite with bounded energy. Skips, loudly, only when there is no
-/// adapter and `CI` is unset.
+/// end finite with bounded energy. Skips, counted, only when there is no
+/// adapter.
 #[test]
 fn cli_gpu_soak_ends_finite_with_bounded_energy() {
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
         .args(["stress", "--soak", "3000", "--backend", "wgpu-gather,wgpu-fixed", "--json"])
         .output()
         .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-    let reports: Vec<serde_json::Value> = serde_json::from_slice(&output.stdout).unwrap();
-    if reports.is_empty() && std::env::var_os("CI").is_none() {
-        eprintln!("SKIPPING the GPU soak: {}", String::from_utf8_lossy(&output.stderr));
+    if no_adapter(&output) {
         return;
     }
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let reports: Vec<serde_json::Value> = serde_json::from_slice(&output.stdout).unwrap();
     assert_eq!(reports.len(), 2, "{reports:?}");
     for r in &reports {
         assert_eq!(r["substeps"], 3000, "{r}");
@@ -274,32 +283,90 @@ fn cli_without_an_adapter_says_what_to_install() {
     if cfg!(target_os = "macos") {
         return;
     }
-    assert_eq!(output.status.code(), Some(2));
+    assert_eq!(output.status.code(), Some(i32::from(yarn_gate::NO_ADAPTER_EXIT)), "its own exit code, not 2");
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains("no GPU adapter found") && stderr.contains("mesa-vulkan-drivers"), "{stderr}");
     assert!(stderr.contains("CPU backend"), "{stderr}");
 }
 
-/// Regression: a command over several backends promised to leave a GPU
-/// one out, with a warning, when there is no adapter, but the adapter's
-/// absence ended the whole command with exit code 2.
-#[test]
-fn cli_a_list_of_backends_leaves_out_a_gpu_without_an_adapter() {
+/// A command's run without an adapter: the GPU's name is the warning's.
+fn without_an_adapter(args: &[&str]) -> (Output, String) {
     // Metal does not exist on Linux, so asking for it alone finds nothing.
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
-        .args(["stress", "--soak", "200", "--backend", "serial-f32,wgpu", "--json"])
+        .args(args)
         .env("WGPU_BACKEND", "metal")
         .output()
-        .unwrap();
+        .expect("yarn-gate starts");
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    (output, stderr)
+}
+
+/// Regression: a command over several backends promised to leave a GPU
+/// one out, with a warning, when there is no adapter, but the adapter's
+/// absence ended the whole command with exit code 2. `stress`, `pareto`
+/// and `plotdata` each run the rest; a list of GPU backends alone has
+/// nothing left to run and exits with the no-adapter code.
+#[test]
+fn cli_a_list_of_backends_leaves_out_a_gpu_without_an_adapter() {
     if cfg!(target_os = "macos") {
         return;
     }
-    let stderr = String::from_utf8_lossy(&output.stderr);
+    let warning = "warning: wgpu left out: no GPU adapter found";
+    let (output, stderr) = without_an_adapter(&["stress", "--soak", "200", "--backend", "serial-f32,wgpu", "--json"]);
     assert!(output.status.success(), "{stderr}");
-    assert!(stderr.contains("warning: wgpu left out: no GPU adapter found"), "{stderr}");
+    assert!(stderr.contains(warning), "{stderr}");
     let reports: Vec<serde_json::Value> = serde_json::from_slice(&output.stdout).unwrap();
     let backends: Vec<&str> = reports.iter().map(|r| r["backend"].as_str().unwrap()).collect();
     assert_eq!(backends, ["serial-f32"]);
+
+    let dir = std::env::temp_dir().join(format!("yarnify-no-adapter-{}", std::process::id()));
+    let out = dir.to_str().unwrap();
+    let (output, stderr) = without_an_adapter(&[
+        "pareto",
+        "--size",
+        "3x3",
+        "--duration",
+        "0.02",
+        "--substeps",
+        "5",
+        "--repeats",
+        "1",
+        "--backend",
+        "serial-f32,wgpu",
+        "--json",
+        "--out",
+        out,
+    ]);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains(warning), "{stderr}");
+    let report: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    let rows = report["rows"].as_array().unwrap();
+    assert!(
+        !rows.is_empty() && rows.iter().all(|r| r["config"].as_str().unwrap().starts_with("serial-f32")),
+        "{report}"
+    );
+
+    let (output, stderr) = without_an_adapter(&[
+        "plotdata",
+        "--size",
+        "3x3",
+        "--steps",
+        "40",
+        "--pull-steps",
+        "20",
+        "--scaling",
+        "serial-f32,wgpu",
+        "--out",
+        out,
+    ]);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains(warning), "{stderr}");
+    let scaling = std::fs::read_to_string(dir.join("fig4_scaling.csv")).unwrap();
+    assert!(scaling.lines().skip(1).all(|l| l.contains("serial-f32")) && scaling.lines().count() > 1, "{scaling}");
+    std::fs::remove_dir_all(&dir).unwrap();
+
+    let (output, stderr) = without_an_adapter(&["stress", "--soak", "200", "--backend", "wgpu,wgpu-fixed", "--json"]);
+    assert_eq!(output.status.code(), Some(i32::from(yarn_gate::NO_ADAPTER_EXIT)), "nothing ran: {stderr}");
 }
 
 /// `render` writes a PNG of the requested size and an OBJ mesh.
@@ -316,8 +383,7 @@ fn cli_render_writes_a_png_and_an_obj() {
         .arg(&obj)
         .output()
         .unwrap();
-    if output.status.code() == Some(2) && std::env::var_os("CI").is_none() {
-        eprintln!("SKIPPING render: {}", String::from_utf8_lossy(&output.stderr));
+    if no_adapter(&output) {
         return;
     }
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));

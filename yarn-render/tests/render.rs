@@ -1,25 +1,17 @@
 //! Rendering on a real adapter: a patch fills the frame with yarn, and a
-//! degenerate one does not. Skips, loudly, only when there is no adapter
-//! and `CI` is unset.
+//! degenerate one does not. Skips, counted, only when there is no adapter
+//! ([`yarn_backend_wgpu::testing`]).
 
 use std::sync::{Arc, OnceLock};
 
-use yarn_backend_wgpu::Gpu;
+use yarn_backend_wgpu::testing;
 use yarn_render::{BACKGROUND, RenderError, Renderer, View};
 use yarn_topology::{Chart, Fabric, Geometry};
 
 fn renderer() -> Option<&'static Renderer> {
-    static RENDERER: OnceLock<Option<Renderer>> = OnceLock::new();
-    RENDERER
-        .get_or_init(|| match Gpu::new() {
-            Ok(gpu) => Some(Renderer::new(&Arc::clone(&gpu))),
-            Err(e) if std::env::var_os("CI").is_none() => {
-                eprintln!("SKIPPING render test: {e}");
-                None
-            }
-            Err(e) => panic!("CI is set, so the GPU tests must run, but: {e}"),
-        })
-        .as_ref()
+    static RENDERER: OnceLock<Renderer> = OnceLock::new();
+    let gpu = testing::shared_gpu()?;
+    Some(RENDERER.get_or_init(|| Renderer::new(&gpu)))
 }
 
 fn patch(w: usize, h: usize) -> (Vec<[f32; 3]>, f32) {
@@ -68,11 +60,7 @@ fn bad_input_is_refused() {
 fn positions_on_the_gpu_draw_like_positions_read_back() {
     use yarn_backend_wgpu::{Mode, Wgpu};
     use yarn_model::{Backend, Params};
-    let Ok(gpu) = Gpu::new() else {
-        assert!(std::env::var_os("CI").is_none(), "CI is set, so the GPU tests must run");
-        eprintln!("SKIPPING render test: no adapter");
-        return;
-    };
+    let Some(gpu) = testing::shared_gpu() else { return };
     let renderer = Renderer::new(&gpu);
     let fabric = Fabric::from_chart(&Chart::stockinette(5, 4).expect("size"), &Geometry::default()).expect("chart");
     let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
@@ -115,11 +103,7 @@ fn positions_on_the_gpu_draw_like_positions_read_back() {
 #[test]
 fn a_position_buffer_too_small_for_the_yarn_is_refused_by_name() {
     use yarn_backend_wgpu::wgpu;
-    let Ok(gpu) = Gpu::new() else {
-        assert!(std::env::var_os("CI").is_none(), "CI is set, so the GPU tests must run");
-        eprintln!("SKIPPING render test: no adapter");
-        return;
-    };
+    let Some(gpu) = testing::shared_gpu() else { return };
     let renderer = Renderer::new(&gpu);
     let (positions, radius) = patch(3, 3);
     let nodes = positions.len();

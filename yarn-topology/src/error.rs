@@ -50,7 +50,7 @@ pub enum TopologyError {
     NoNodes,
     /// More memory than the system has free.
     #[error(
-        "{what} needs {needed} bytes but only {available} are available (MemAvailable in /proc/meminfo); use a smaller fabric or free memory"
+        "{what} needs {needed} bytes but only {available} are available (MemAvailable in /proc/meminfo, or the cap of `limit_memory`); use a smaller fabric or free memory"
     )]
     OutOfMemory {
         /// What would not fit.

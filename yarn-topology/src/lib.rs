@@ -31,7 +31,7 @@ mod stockinette;
 pub use chart::{Chart, StitchKind};
 pub use error::TopologyError;
 pub use fabric::{Boundary, Contact, Fabric, FabricParts, Pin, Side, Spring, Triple, validate_pins};
-pub use memory::{available_memory, check_memory};
+pub use memory::{available_memory, check_memory, limit_memory};
 pub use stockinette::{Geometry, SEG};
 
 /// A 3-vector of model-unit coordinates.

@@ -2,12 +2,45 @@
 //! is refused with an error instead of the process being killed part way
 //! through building it.
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use crate::TopologyError;
 
-/// Bytes the system can still allocate without swapping: `MemAvailable` in
-/// `/proc/meminfo` on Linux; `None` where that is not known (other systems),
-/// and then nothing is refused for memory.
+/// The cap [`limit_memory`] set, `u64::MAX` for none.
+static LIMIT: AtomicU64 = AtomicU64::new(u64::MAX);
+
+/// Cap the memory yarnify's checks count as available at `bytes`, for the
+/// whole process, or lift the cap with `None`: a tool that shares the
+/// machine keeps its fabrics within a budget, and they are refused with
+/// [`TopologyError::OutOfMemory`] past it, exactly as past the system's
+/// free memory.
+///
+/// ```
+/// use yarn_topology::{Chart, Fabric, Geometry, TopologyError, limit_memory};
+///
+/// limit_memory(Some(1 << 20));
+/// let refused = Chart::stockinette(64, 64).and_then(|c| Fabric::from_chart(&c, &Geometry::default()));
+/// assert!(matches!(refused, Err(TopologyError::OutOfMemory { available: 1_048_576, .. })));
+/// limit_memory(None);
+/// ```
+pub fn limit_memory(bytes: Option<u64>) {
+    LIMIT.store(bytes.unwrap_or(u64::MAX), Ordering::Relaxed);
+}
+
+/// Bytes the system can still allocate without swapping, `MemAvailable`
+/// in `/proc/meminfo` on Linux, capped by [`limit_memory`]; `None` where
+/// neither is known (other systems without a cap), and then nothing is
+/// refused for memory.
 pub fn available_memory() -> Option<u64> {
+    let limit = Some(LIMIT.load(Ordering::Relaxed)).filter(|&l| l != u64::MAX);
+    match (system_available(), limit) {
+        (Some(free), Some(limit)) => Some(free.min(limit)),
+        (free, limit) => free.or(limit),
+    }
+}
+
+/// `MemAvailable` from `/proc/meminfo`, in bytes.
+fn system_available() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
