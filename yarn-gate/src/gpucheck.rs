@@ -80,9 +80,12 @@ pub struct ModeReport {
     pub pass: bool,
 }
 
-/// The smallest fraction of the frame the drawn patch must cover (the
-/// paper's frame was 16 % yarn).
-pub const MIN_RENDER_COVERAGE: f64 = 0.02;
+/// The smallest fraction of the frame the drawn patch must cover: three
+/// quarters of the 46.5 % that `gpucheck` measures on lavapipe (and the
+/// gate's default render, 46-47 %), so a patch drawn half or framed half
+/// off the picture fails. Re-measure with `yarn-gate gpucheck`, which
+/// prints the coverage beside this bound.
+pub const MIN_RENDER_COVERAGE: f64 = 0.35;
 
 /// The whole check.
 #[derive(Debug, Clone, PartialEq, Serialize)]

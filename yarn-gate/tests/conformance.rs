@@ -96,71 +96,32 @@ proptest! {
 }
 
 /// Serial f32 against Serial f64 over the gate's 12,000-substep relaxation:
-/// the precision cost of f32, reported. The free patch creeps along soft
-/// modes, so rounding differences grow into visible but bounded drift; the
-/// bound here catches a precision bug (an f32 path that loses digits), not
-/// the ordinary divergence.
+/// the precision cost of f32. The free patch creeps along soft modes, so
+/// rounding differences grow from 1.6e-4 r to visible but bounded drift;
+/// each bound is three times what this test measured (it prints both, so
+/// a model change re-derives them: the run is deterministic), so it catches
+/// an f32 path that loses digits, not the ordinary divergence. Measured
+/// (max r, rms r, relative energy): 300 substeps 1.59e-4, 2.96e-5,
+/// 2.2e-7; 1,200: 1.36e-3, 2.55e-4, 9.4e-8; 3,000: 0.228, 0.0422, 4.8e-4;
+/// 12,000: 9.14, 2.17, 0.074.
 #[test]
 fn f32_drift_over_the_gate_relaxation() {
+    // (substeps, max r, rms r, relative energy), each 3x the measured but
+    // at 12,000 the rms and energy, held to the tighter bounds before them.
+    const BOUNDS: [(u64, f64, f64, f64); 4] = [
+        (300, 4.8e-4, 8.9e-5, 6.7e-7),
+        (1_200, 4.1e-3, 7.7e-4, 2.8e-7),
+        (3_000, 0.68, 0.127, 1.4e-3),
+        (12_000, 27.4, 5.0, 0.2),
+    ];
     let fabric = Fabric::from_chart(&Chart::stockinette(16, 16).unwrap(), &Geometry::default()).unwrap();
-    for steps in [300, 1_200, 3_000] {
-        let early = conformance::f32_drift(&fabric, &Params::gate(), steps).unwrap();
-        println!("serial f32 vs f64 after {steps} substeps: {early:?}");
-        // Before the soft modes amplify rounding, f32 tracks f64 closely.
-        if steps == 300 {
-            assert!(early.max_position < 1e-3, "{early:?}");
-        }
+    for (steps, max, rms, energy) in BOUNDS {
+        let drift = conformance::f32_drift(&fabric, &Params::gate(), steps).unwrap();
+        println!(
+            "serial f32 vs f64 after {steps} substeps: max {:.3e} r (bound {max:e}), rms {:.3e} r (bound {rms:e}), \
+             energy {:.2e} (bound {energy:e})",
+            drift.max_position, drift.rms_position, drift.energy
+        );
+        assert!(drift.max_position <= max && drift.rms_position <= rms && drift.energy <= energy, "{drift:?}");
     }
-    let drift = conformance::f32_drift(&fabric, &Params::gate(), 12_000).unwrap();
-    println!("serial f32 vs f64 after 12000 substeps: {drift:?}");
-    assert!(drift.rms_position.is_finite() && drift.rms_position < 5.0, "{drift:?}");
-    assert!(drift.energy < 0.2, "{drift:?}");
-}
-
-/// What [`conformance::TRAJECTORY_CEILING`] and
-/// [`conformance::ENERGY_CEILING`] rest on: over 900 random scenes (a fixed
-/// seed), each backend's trajectory and energy errors beside the scene's
-/// own one-ulp sensitivity, printed as the largest and the 99th
-/// percentile. Rerun after a model change:
-/// `cargo test --release -p yarn-gate --test conformance -- --ignored --nocapture measure_trajectory_errors`.
-#[test]
-#[ignore = "a measurement, printed; the checks above assert its bounds"]
-fn measure_trajectory_errors() {
-    use proptest::strategy::ValueTree;
-    use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
-    let mut runner = TestRunner::new_with_rng(Config::default(), TestRng::from_seed(RngAlgorithm::ChaCha, &[7; 32]));
-    let scenes: Vec<_> = (0..900).map(|_| strategy::scene().new_tree(&mut runner).unwrap().current()).collect();
-    let summary = |name: &str, values: &mut Vec<f64>| {
-        values.sort_by(f64::total_cmp);
-        let p99 = values[values.len() * 99 / 100];
-        println!("{name:<40} max {:.3e}  p99 {p99:.3e}", values.last().unwrap());
-    };
-    let measure = |name: &str, errors: &dyn Fn(&conformance::Scene) -> conformance::TrajectoryErrors| {
-        let all: Vec<_> = scenes.iter().map(errors).collect();
-        summary(&format!("{name} position (r)"), &mut all.iter().map(|e| e.position).collect());
-        summary(&format!("{name} energy"), &mut all.iter().map(|e| e.energy).collect());
-        let calm: Vec<_> = all.iter().filter(|e| !e.too_chaotic()).collect();
-        let mut ratio: Vec<f64> = calm.iter().map(|e| e.position / e.position_tolerance(&Tolerance::CPU_F32)).collect();
-        summary(&format!("{name} error / tolerance, {} calm scenes", calm.len()), &mut ratio);
-        all
-    };
-    let slept = scenes
-        .iter()
-        .filter(|scene| {
-            let mut backend = Serial::<f32>::new();
-            scene.load(&mut backend).unwrap();
-            (0..conformance::TRAJECTORY_STEPS).any(|_| backend.advance(1).is_ok() && backend.sleeping_blocks() > 0)
-        })
-        .count();
-    println!("scenes in which a block slept: {slept} of {}", scenes.len());
-    let all = measure("serial-f32", &|s| conformance::trajectory_errors(Serial::<f32>::new, s));
-    summary("10x one-ulp sensitivity (r)", &mut all.iter().map(|e| 10.0 * e.position_sensitivity).collect());
-    summary("10x one-ulp energy sensitivity", &mut all.iter().map(|e| 10.0 * e.energy_sensitivity).collect());
-    measure("rayon x3", &|s| conformance::trajectory_errors(|| Rayon::with_threads(3).unwrap(), s));
-    if let Some(gpu) = gpu() {
-        for mode in [Mode::Gather, Mode::FixedPointAtomic] {
-            measure(mode.name(), &|s| conformance::trajectory_errors(|| Wgpu::with_gpu(Arc::clone(&gpu), mode), s));
-        }
-    }
-    println!("ceilings: {} r, energy {}", conformance::TRAJECTORY_CEILING, conformance::ENERGY_CEILING);
 }
