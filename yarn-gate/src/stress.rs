@@ -421,6 +421,8 @@ pub struct SoakReport {
     pub reknits: u64,
     /// The largest total energy seen, measured after every chunk.
     pub max_energy: f64,
+    /// The mean of those measurements.
+    pub mean_energy: f64,
     /// The largest node speed at the end.
     pub final_max_speed: f64,
     /// Every position and velocity is finite at the end.
@@ -478,7 +480,7 @@ pub fn soak<B: Backend>(
     };
     let mut next_release = 0;
     let mut grab: Option<Pin> = None;
-    let (mut done, mut actions, mut reknits, mut max_energy) = (0, 0, 0, 0.0f64);
+    let (mut done, mut actions, mut reknits, mut max_energy, mut energy_sum) = (0, 0, 0, 0.0f64, 0.0);
     let reach = 2.0 * Geometry::default().stitch_width;
     while done < substeps {
         actions += 1;
@@ -517,7 +519,9 @@ pub fn soak<B: Backend>(
         let n = CHUNK.min(substeps - done);
         backend.advance(n)?;
         done += n;
-        max_energy = max_energy.max(backend.measure(&fabric)?.0.total());
+        let energy = backend.measure(&fabric)?.0.total();
+        max_energy = max_energy.max(energy);
+        energy_sum += energy;
         progress(done);
     }
     let state = backend.state()?.cast::<f64>();
@@ -528,6 +532,7 @@ pub fn soak<B: Backend>(
         actions,
         reknits,
         max_energy,
+        mean_energy: energy_sum / actions as f64,
         final_max_speed: state.max_speed(),
         finite,
     })
@@ -617,26 +622,28 @@ mod tests {
     }
 
     /// A soak long enough to come apart and be knitted back up ends finite
-    /// with its energy, measured after every chunk, peaking where the same
-    /// soak on `Reference<f64>` peaks: measured over seeds 1-6 and 11 at
-    /// 20,000 substeps, `Serial<f32>`'s peak was 0.917-1.004 of the
-    /// reference's (9.6e4 to 2.2e5; grabs drag nodes two stitch widths), so
-    /// the bound is three times that spread, 0.75-1.25. A step that gains
-    /// energy, or loses the contacts' or the grab's, leaves it.
+    /// with its energy, measured after every chunk, where the same soak on
+    /// `Reference<f64>` has it. Measured over seeds 1-6 and 11 at 20,000
+    /// substeps, `Serial<f32>`'s mean energy was 0.986-1.013 of the
+    /// reference's and its peak 0.917-1.004 (9.6e4 to 2.2e5: grabs drag
+    /// nodes two stitch widths); the bounds are 1 ± 0.05 and 1 ± 0.25, about
+    /// three times the spreads. A step that gains energy leaves them.
     #[test]
     fn a_soak_reknits_ends_finite_and_keeps_to_the_reference_energy() {
-        const SPREAD: f64 = 0.25;
+        const MEAN_SPREAD: f64 = 0.05;
+        const PEAK_SPREAD: f64 = 0.25;
         let (substeps, seed) = (20_000, 11);
         let reference =
             soak(&mut yarn_backend_cpu::Reference::<f64>::new(), substeps, seed, &mut |_| {}).expect("it survives");
         let report = soak(&mut Serial::<f32>::new(), substeps, seed, &mut |_| {}).expect("the soak survives");
-        let ratio = report.max_energy / reference.max_energy;
+        let mean = report.mean_energy / reference.mean_energy;
+        let peak = report.max_energy / reference.max_energy;
         println!(
-            "peak energy {:.4e} against the reference's {:.4e}: {ratio:.3} (bound 1 ± {SPREAD})",
-            report.max_energy, reference.max_energy
+            "against the reference's energy: mean {mean:.3} (bound 1 ± {MEAN_SPREAD}), peak {peak:.3} (bound 1 ± {PEAK_SPREAD})"
         );
         assert!(report.finite && report.substeps == substeps && report.actions == 200, "{report:?}");
         assert!(report.reknits >= 1 && report.reknits == reference.reknits, "{report:?} against {reference:?}");
-        assert!((ratio - 1.0).abs() <= SPREAD, "{report:?} against {reference:?}");
+        assert!((mean - 1.0).abs() <= MEAN_SPREAD, "{report:?} against {reference:?}");
+        assert!((peak - 1.0).abs() <= PEAK_SPREAD, "{report:?} against {reference:?}");
     }
 }

@@ -276,7 +276,7 @@ fn cli_gpu_soak_reknits_and_keeps_to_the_cpu() {
         assert!(r["reknits"].as_u64().is_some_and(|n| n >= 1), "{r}");
     }
     let (cpu, gather, fixed) = (&reports[0], &reports[1], &reports[2]);
-    for key in ["max_energy", "final_max_speed", "reknits"] {
+    for key in ["max_energy", "mean_energy", "final_max_speed", "reknits"] {
         assert_eq!(gather[key], cpu[key], "{key}: {gather} against {cpu}");
     }
     let ratio = fixed["max_energy"].as_f64().unwrap() / cpu["max_energy"].as_f64().unwrap();
