@@ -24,6 +24,8 @@ fi
 cargo build --release --target wasm32-unknown-unknown -p yarnify-web
 rm -rf "$out"
 mkdir -p "$out"
-wasm-bindgen --target web --no-typescript --out-dir "$out/pkg" target/wasm32-unknown-unknown/release/yarnify_web.wasm
+# Cargo puts the module under CARGO_TARGET_DIR when that is set.
+target=${CARGO_TARGET_DIR:-$root/target}
+wasm-bindgen --target web --no-typescript --out-dir "$out/pkg" "$target/wasm32-unknown-unknown/release/yarnify_web.wasm"
 cp "$here"/www/* "$out/"
 echo "built $out ($(du -sh "$out" | cut -f1)); serve it, e.g.: python3 -m http.server -d $out 8000"

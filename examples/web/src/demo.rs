@@ -237,6 +237,34 @@ impl Demo {
         self.upload_pins()
     }
 
+    /// The current value of one setting by name, as [`Demo::set`] takes
+    /// it (`gravity` is 1 when on, 0 when off).
+    ///
+    /// # Errors
+    /// An unknown name.
+    pub fn setting(&self, name: &str) -> Result<f64, DemoError> {
+        let (settings, params) = (&self.settings, &self.settings.params);
+        Ok(match name {
+            "stretch" => params.stretch_stiffness,
+            "bend" => params.bend_stiffness,
+            "curl" => params.rest_curl,
+            "contact" => params.contact_stiffness,
+            "friction" => params.friction,
+            "damping" => params.damping,
+            "gravity" => {
+                if settings.gravity {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            "substeps" => f64::from(settings.substeps_per_frame),
+            "width" => settings.width as f64,
+            "height" => settings.height as f64,
+            _ => return Err(DemoError::UnknownSetting(name.to_owned())),
+        })
+    }
+
     /// The current settings.
     pub fn settings(&self) -> &Settings {
         &self.settings

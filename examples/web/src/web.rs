@@ -87,6 +87,14 @@ impl App {
         Ok(self.demo.borrow_mut().set(name, value)?)
     }
 
+    /// The current value of a setting by name; see [`Demo::setting`].
+    ///
+    /// # Errors
+    /// An unknown name.
+    pub fn setting(&self, name: &str) -> Result<f64, JsError> {
+        Ok(self.demo.borrow().setting(name)?)
+    }
+
     /// Start again from the flat patch.
     ///
     /// # Errors
@@ -148,6 +156,15 @@ impl App {
     /// Zoom in by `factor`.
     pub fn zoom(&self, factor: f32) {
         self.demo.borrow_mut().zoom(factor);
+    }
+
+    /// Where the point (`x`, `y`, `z`) is drawn on the canvas: pixel x, y
+    /// and depth as a `Float32Array`, or `undefined` behind the camera. For
+    /// tests and tools, to find a node read back with [`App::positions`]
+    /// on screen.
+    pub fn project(&self, x: f32, y: f32, z: f32) -> Option<Vec<f32>> {
+        let demo = self.demo.borrow();
+        demo.yarn().project(demo.view(), [x, y, z]).map(Vec::from)
     }
 
     /// The status as JSON: adapter, nodes, contacts, alive, substeps,

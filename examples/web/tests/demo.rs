@@ -6,7 +6,7 @@
 use std::sync::Arc;
 
 use yarn_backend_wgpu::{Gpu, testing, wgpu};
-use yarnify_web::{Demo, DemoError, OFFSCREEN_FORMAT, Settings};
+use yarnify_web::{Demo, DemoError, OFFSCREEN_FORMAT, SETTINGS, Settings};
 
 /// An 8x8 demo and the GPU context it runs on.
 fn demo() -> Option<(Arc<Gpu>, Demo)> {
@@ -62,56 +62,98 @@ fn coverage(demo: &Demo, gpu: &Gpu) -> f64 {
     frame.coverage()
 }
 
+fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f32>().sqrt()
+}
+
+fn steps(demo: &mut Demo, frames: usize) {
+    for _ in 0..frames {
+        demo.step().expect("step");
+    }
+}
+
+/// How far up the grab test drags, in pixels.
+const DRAG: f32 = 40.0;
+
+/// A grab holds the grabbed node under the cursor. Measured against the
+/// same frames from the same start without the grab, so that what free
+/// relaxation moves anyway does not count: the grabbed node ends up where
+/// the cursor is and well away from where it would have been, while the
+/// far side of the patch hardly notices.
 #[test]
-fn the_demo_draws_grabs_unravels_and_ladders() {
+fn a_grab_carries_the_grabbed_node_to_the_cursor() {
     let Some((_, mut demo)) = demo() else { return };
     demo.resize(256, 192);
-    for _ in 0..3 {
-        demo.step().expect("step");
-    }
-    let status = demo.status();
-    assert_eq!((status.nodes, status.substeps, status.frames), (8 * 8 * 8, 3 * 22, 3));
+    steps(&mut demo, 3);
+    let start = positions(&demo);
+    steps(&mut demo, 10);
+    let free = positions(&demo);
 
+    demo.reset().expect("reset");
+    steps(&mut demo, 3);
     // Grab the node drawn nearest the middle of the image and drag it up.
-    let before = positions(&demo);
-    let middle = before.len() / 2;
-    let [x, y, _] = demo.yarn().project(demo.view(), before[middle]).expect("projects");
+    let middle = start.len() / 2;
+    let [x, y, depth] = demo.yarn().project(demo.view(), start[middle]).expect("projects");
     let read = pollster::block_on(demo.positions().expect("read")).expect("positions");
     let node = demo.grab(&read, x, y).expect("grab").expect("a node under the cursor") as usize;
-    demo.drag(x, y - 40.0).expect("drag");
-    for _ in 0..10 {
-        demo.step().expect("step");
-    }
+    demo.drag(x, y - DRAG).expect("drag");
+    steps(&mut demo, 10);
     assert_eq!(demo.status().grabbed, Some(node as u32));
-    let after = positions(&demo);
-    let moved = |i: usize| (0..3).map(|k| (after[i][k] - before[i][k]).powi(2)).sum::<f32>().sqrt();
-    assert!(moved(node) > 1.0, "the grabbed node moved only {}", moved(node));
-    // The snag travels: some other node moved too.
-    let neighbours = (0..before.len()).filter(|&i| i != node && moved(i) > 0.1).count();
-    assert!(neighbours > 10, "only {neighbours} other nodes followed the grab");
+    let held = positions(&demo);
+
+    // Drawn under the cursor.
+    let [hx, hy, _] = demo.yarn().project(demo.view(), held[node]).expect("projects");
+    assert!(
+        (hx - x).abs() < 0.5 && (hy - (y - DRAG)).abs() < 0.5,
+        "node {node} is drawn at ({hx}, {hy}), the cursor is at ({x}, {})",
+        y - DRAG
+    );
+    // Moved by the drag, not by relaxation: the drag spans `reach` in the
+    // grab's plane, and the node ends up most of that from its free self.
+    let reach = distance(
+        demo.yarn().unproject(demo.view(), x, y, depth),
+        demo.yarn().unproject(demo.view(), x, y - DRAG, depth),
+    );
+    let off = |i: usize| distance(held[i], free[i]);
+    // The quarter of the nodes farthest from the grabbed one.
+    let mut by_distance: Vec<usize> = (0..start.len()).collect();
+    by_distance.sort_by(|&i, &j| distance(start[i], start[node]).total_cmp(&distance(start[j], start[node])));
+    let far = &by_distance[3 * start.len() / 4..];
+    let far_off = far.iter().map(|&i| off(i)).fold(0.0, f32::max);
+    println!(
+        "the grab moved node {node} {:.3} from its free self (the drag spans {reach:.3}); the far quarter at most {far_off:.4}",
+        off(node)
+    );
+    assert!(off(node) > 0.8 * reach, "the grabbed node is {} from its free self; the drag spans {reach}", off(node));
+    assert!(far_off < 0.1 * off(node), "the far side moved {far_off}, the grabbed node {}", off(node));
     demo.let_go().expect("let go");
     assert_eq!(demo.status().grabbed, None);
+}
+
+#[test]
+fn the_demo_steps_unravels_and_ladders() {
+    let Some((_, mut demo)) = demo() else { return };
+    steps(&mut demo, 3);
+    let status = demo.status();
+    assert_eq!((status.nodes, status.substeps, status.frames), (8 * 8 * 8, 3 * 22, 3));
+    let before = positions(&demo);
 
     // Unravel: contacts are released as frames pass.
     let contacts = demo.status().alive;
     demo.unravel(true).expect("unravel");
-    for _ in 0..20 {
-        demo.step().expect("step");
-    }
+    steps(&mut demo, 20);
     let status = demo.status();
     assert!(status.unravelling);
     assert_eq!(status.alive, contacts - 10, "one contact every second frame");
     let pulled = positions(&demo);
     let end = pulled.len() - 1;
-    assert!(pulled[end][1] > after[end][1] + 1.0, "the loose end was not pulled up");
+    assert!(pulled[end][1] > before[end][1] + 1.0, "the loose end was not pulled up");
 
     // A ladder after a reset releases the middle column's contacts.
     demo.reset().expect("reset");
     assert_eq!(demo.status().alive, contacts);
     demo.ladder().expect("ladder");
-    for _ in 0..8 {
-        demo.step().expect("step");
-    }
+    steps(&mut demo, 8);
     assert!(demo.status().laddering);
     assert_eq!(demo.status().alive, contacts - 4);
 }
@@ -127,24 +169,80 @@ fn the_demo_draws_yarn() {
     assert!(coverage(&demo, &gpu) > covered, "zooming in should fill more of the frame");
 }
 
+/// Each refusal names the setting, the value and the values it takes, and
+/// leaves the demo as it was: the settings, the patch and its motion so far.
 #[test]
-fn bad_settings_are_refused_and_change_nothing() {
+fn bad_settings_are_refused_by_name_and_change_nothing() {
     let Some((_, mut demo)) = demo() else { return };
-    let settings = *demo.settings();
-    assert!(matches!(demo.set("knitting", 1.0), Err(DemoError::UnknownSetting(name)) if name == "knitting"));
-    assert!(matches!(demo.set("substeps", 0.0), Err(DemoError::OutOfRange { name: "substeps", .. })));
+    steps(&mut demo, 2);
+    let (settings, status, moved) = (*demo.settings(), demo.status(), positions(&demo));
+    let mut refused = |name: &str, value: f64| demo.set(name, value).expect_err(name).to_string();
+    assert_eq!(
+        refused("knitting", 1.0),
+        "unknown setting `knitting`; the settings are: stretch, bend, curl, contact, friction, damping, gravity, substeps, width, height"
+    );
+    assert_eq!(refused("substeps", 0.0), "substeps = 0 is outside the whole numbers 1..=500");
+    assert_eq!(refused("substeps", 501.0), "substeps = 501 is outside the whole numbers 1..=500");
+    assert_eq!(refused("width", 1.5), "width = 1.5 is outside the whole numbers 2..=128");
+    assert_eq!(refused("height", 129.0), "height = 129 is outside the whole numbers 2..=128");
+    assert_eq!(refused("stretch", -5.0), "parameter `stretch_stiffness` is -5; it must be greater than 0");
+    assert_eq!(refused("curl", 1.5), "parameter `rest_curl` is 1.5; it must be between 0 and 1");
+    assert_eq!(refused("damping", f64::NAN), "parameter `damping` is NaN; it must be a finite number");
     assert!(matches!(demo.set("width", 1.5), Err(DemoError::OutOfRange { name: "width", .. })));
     assert!(matches!(demo.set("stretch", -5.0), Err(DemoError::Backend(_))));
-    assert!(matches!(demo.set("damping", f64::NAN), Err(DemoError::Backend(_))));
     assert_eq!(*demo.settings(), settings);
-    assert_eq!(demo.status().nodes, 8 * 8 * 8);
-    demo.step().expect("still steps");
+    // Not reloaded, not stepped: the same patch where it was.
+    assert_eq!(demo.status(), status);
+    assert_eq!(positions(&demo), moved);
+    steps(&mut demo, 1);
+    assert_eq!(demo.status().substeps, status.substeps + 22, "still steps");
+}
 
-    demo.set("friction", 0.0).expect("friction off");
-    demo.set("gravity", 1.0).expect("gravity on");
-    demo.set("substeps", 5.0).expect("substeps");
-    demo.set("height", 4.0).expect("a smaller patch");
-    assert_eq!((demo.settings().substeps_per_frame, demo.status().nodes), (5, 8 * 4 * 8));
-    demo.step().expect("step");
-    assert_eq!(demo.status().substeps, 5);
+/// Every setting named in [`SETTINGS`] takes a value and reads it back, and
+/// the ones with a visible effect have it.
+#[test]
+fn every_setting_takes_effect_and_reads_back() {
+    let Some((_, mut demo)) = demo() else { return };
+    let values = [
+        ("stretch", 500.0),
+        ("bend", 2.5),
+        ("curl", 0.2),
+        ("contact", 400.0),
+        ("friction", 0.0),
+        ("damping", 20.0),
+        ("gravity", 1.0),
+        ("substeps", 5.0),
+        ("width", 6.0),
+        ("height", 4.0),
+    ];
+    let names: Vec<&str> = values.iter().map(|(name, _)| *name).collect();
+    assert_eq!(names, SETTINGS.split(", ").collect::<Vec<_>>(), "a setting without a value here");
+    for (name, value) in values {
+        assert_ne!(demo.setting(name).expect(name), value, "{name} is {value} already");
+        demo.set(name, value).expect(name);
+        assert_eq!(demo.setting(name).expect(name), value, "{name}");
+    }
+    assert!(matches!(demo.setting("knitting"), Err(DemoError::UnknownSetting(_))));
+    let settings = demo.settings();
+    assert_eq!((settings.params.rest_curl, settings.params.gravity), (0.2, 9.81));
+    assert_eq!(demo.status().nodes, 6 * 4 * 8);
+    // Gravity holds the top row, and the rest hangs lower than the same
+    // frames without gravity leave it; five substeps a frame.
+    let rest = positions(&demo);
+    steps(&mut demo, 40);
+    assert_eq!(demo.status().substeps, 40 * 5);
+    let hung = positions(&demo);
+    demo.set("gravity", 0.0).expect("gravity off");
+    demo.reset().expect("reset");
+    steps(&mut demo, 40);
+    let free = positions(&demo);
+    let (low, high) =
+        rest.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(low, high), p| (low.min(p[1]), high.max(p[1])));
+    let rest = &rest;
+    let row = |y: f32| (0..rest.len()).filter(move |&i| (rest[i][1] - y).abs() < 0.5);
+    let sag = row(low).map(|i| free[i][1] - hung[i][1]).sum::<f32>() / row(low).count() as f32;
+    let top = row(high).map(|i| distance(hung[i], rest[i])).fold(0.0, f32::max);
+    println!("in 40 frames gravity hung the bottom row {sag:.3} lower on average; the top row moved at most {top:.5}");
+    assert!(sag > 0.02, "gravity hung the bottom row only {sag} lower");
+    assert!(top < 0.1 * sag, "the top row, held, moved {top}");
 }
