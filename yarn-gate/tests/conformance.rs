@@ -7,7 +7,6 @@ use proptest::prelude::*;
 use yarn_backend_cpu::{Rayon, Serial};
 use yarn_backend_wgpu::{Gpu, Mode, Wgpu, testing};
 use yarn_gate::conformance::{self, Tolerance, strategy};
-use yarn_model::Backend;
 use yarn_model::Params;
 use yarn_topology::{Chart, Fabric, Geometry};
 
