@@ -345,6 +345,188 @@ mod tests {
         assert!(worst < 0.15, "sleeping moved a node {worst} r from the awake run");
     }
 
+    /// A straight yarn three blocks long (1,536 nodes, 0.5 apart along x,
+    /// which `f32` holds exactly) with `contacts`. At rest every force is
+    /// zero, so with any sleep speed it falls asleep at the first look
+    /// after [`yarn_model::SLEEP_AFTER`] substeps.
+    fn straight_yarn(contacts: Vec<[u32; 2]>) -> Fabric {
+        let positions = (0..3 * 512u32).map(|i| yarn_topology::Vec3::new(0.5 * f64::from(i), 0.0, 0.0)).collect();
+        Fabric::from_parts(yarn_topology::FabricParts { positions, contacts, ..Default::default() }).unwrap()
+    }
+
+    /// A CPU backend and how it reports its sleeping blocks.
+    type Sleeper<B> = (B, fn(&B) -> usize);
+
+    /// Every call that changes the scene wakes every block: new
+    /// parameters, a written state, a change of contact liveness and new
+    /// pins. After each the yarn falls asleep again within
+    /// [`yarn_model::SLEEP_AFTER`] substeps, except the block holding a
+    /// pin, which stays awake.
+    #[test]
+    fn every_scene_change_wakes_a_sleeping_fabric() {
+        fn check<B: Backend>((mut backend, sleeping): Sleeper<B>) {
+            let fabric = straight_yarn(vec![[100, 900]]);
+            let params = Params { sleep_speed: 0.01, ..Params::default() };
+            backend.load(&fabric, &params).unwrap();
+            let name = backend.name();
+            let settle = |backend: &mut B| {
+                backend.advance(u64::from(yarn_model::SLEEP_AFTER)).unwrap();
+                sleeping(backend)
+            };
+            assert_eq!(sleeping(&backend), 0, "{name}: asleep at load");
+            assert_eq!(settle(&mut backend), 3, "{name}: the yarn at rest did not fall asleep");
+
+            backend.set_params(&Params { damping: 5.0, ..params }).unwrap();
+            assert_eq!(sleeping(&backend), 0, "{name}: set_params left blocks asleep");
+            assert_eq!(settle(&mut backend), 3, "{name}: not asleep again after set_params");
+
+            let state = backend.state().unwrap();
+            backend.write_state(&state).unwrap();
+            assert_eq!(sleeping(&backend), 0, "{name}: write_state left blocks asleep");
+            assert_eq!(settle(&mut backend), 3, "{name}: not asleep again after write_state");
+
+            backend.set_contacts_alive(&[false]).unwrap();
+            assert_eq!(sleeping(&backend), 0, "{name}: set_contacts_alive left blocks asleep");
+            assert_eq!(settle(&mut backend), 3, "{name}: not asleep again after set_contacts_alive");
+
+            backend.set_pins(&[Pin { node: 700, target: fabric.positions()[700] }]).unwrap();
+            assert_eq!(sleeping(&backend), 0, "{name}: set_pins left blocks asleep");
+            assert_eq!(settle(&mut backend), 2, "{name}: the pinned block (1 of 3) fell asleep, or another stayed up");
+        }
+        check::<Serial<f32>>((Serial::new(), Serial::sleeping_blocks));
+        check::<Serial<f64>>((Serial::new(), Serial::sleeping_blocks));
+        check::<Rayon>((Rayon::with_threads(2).unwrap(), Rayon::sleeping_blocks));
+    }
+
+    /// A sleeping block wakes when a neighbour moves at more than twice
+    /// the sleep speed, with no call to the backend. A kick at the start of
+    /// an undamped straight yarn keeps the first block fast, which holds
+    /// the second awake while the third falls asleep. The kick travels
+    /// along the yarn at about 0.27 nodes per substep (ωh at the default
+    /// k_s, m and h); the third block wakes at the look where the second
+    /// first moves faster than twice the sleep speed, not before and not
+    /// after. It woke at substep 1,870 on every backend here (printed);
+    /// the test gives the kick until substep 4,000.
+    #[test]
+    fn a_sleeping_block_wakes_when_its_neighbour_moves_fast() {
+        fn check<B: Backend>((mut backend, sleeping): Sleeper<B>) {
+            let sleep_speed = 0.01;
+            let fabric = straight_yarn(Vec::new());
+            backend.load(&fabric, &Params { sleep_speed, damping: 0.0, ..Params::default() }).unwrap();
+            let name = backend.name();
+            let mut state = backend.state().unwrap();
+            for v in &mut state.velocities[..10] {
+                v.x = B::Real::of(1.0);
+            }
+            backend.write_state(&state).unwrap();
+            let mut substeps = u64::from(yarn_model::SLEEP_AFTER);
+            backend.advance(substeps).unwrap();
+            let state = backend.state().unwrap();
+            assert_eq!(sleeping(&backend), 1, "{name}: only the far block should sleep");
+            assert!(state.velocities[1024..].iter().all(|v| *v == V3::zeros()), "{name}: the far block is awake");
+            // The fastest speed squared in the middle block, as the sleep
+            // look computes it.
+            let middle = |state: &State<B::Real>| {
+                state.velocities[512..1024].iter().map(|v| v.norm_squared().to_f64()).fold(0.0, f64::max)
+            };
+            let wake2 = 4.0 * sleep_speed * sleep_speed;
+            loop {
+                let before = middle(&backend.state().unwrap());
+                backend.advance(10).unwrap();
+                substeps += 10;
+                let after = middle(&backend.state().unwrap());
+                if sleeping(&backend) == 0 {
+                    assert!(before <= wake2 && after > wake2, "{name}: woke at middle speed² {after}, limit {wake2}");
+                    eprintln!("{name}: the far block woke at substep {substeps} (middle speed² {after} > {wake2})");
+                    break;
+                }
+                assert!(after <= wake2, "{name}: middle speed² {after} past {wake2}, the far block still asleep");
+                assert!(substeps < 4000, "{name}: the kick never reached the middle block");
+            }
+        }
+        check::<Serial<f32>>((Serial::new(), Serial::sleeping_blocks));
+        check::<Serial<f64>>((Serial::new(), Serial::sleeping_blocks));
+        check::<Rayon>((Rayon::with_threads(2).unwrap(), Rayon::sleeping_blocks));
+    }
+
+    /// Equal bit for bit (so -0 differs from 0, and a NaN equals itself):
+    /// `assert_eq!` on the bits, naming the first node that differs rather
+    /// than printing thousands.
+    fn assert_same(got: &[V3<f32>], want: &[V3<f32>], what: &str) {
+        let bits = |v: &V3<f32>| v.map(f32::to_bits);
+        assert_eq!(got.len(), want.len(), "{what}: lengths");
+        let differ = got.iter().zip(want).filter(|(a, b)| bits(a) != bits(b)).count();
+        let first = got.iter().zip(want).position(|(a, b)| bits(a) != bits(b)).map(|i| (i, got[i], want[i]));
+        assert_eq!(first, None, "{what}: {differ} of {} nodes differ; (first node, rayon, serial)", got.len());
+    }
+
+    /// `Rayon` is `Serial<f32>` spread over threads: the same forces and
+    /// the same trajectory, bit for bit, on 1, 2 and 3 threads. The 48x48
+    /// patch (18,432 nodes in 36 blocks, 4,512 contacts in up to 9
+    /// contact blocks) splits every pass into several tasks. The run is kicked,
+    /// pinned (the top row, and a grabbed head drawn out), has every fifth
+    /// contact dead, and revives them at substep 60 away from their rest,
+    /// so re-seated contacts close during the second half; with friction
+    /// (four passes) and without (the move fused into the block pass). So
+    /// that equality means something, the run must move nodes more than 1
+    /// unit and re-seat more than a tenth of the contacts (measured, and
+    /// printed: 7.6 units and 903 of 4,512 contacts, at both μ).
+    #[test]
+    fn rayon_matches_serial_f32_bit_for_bit_on_1_2_and_3_threads() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(48, 48).unwrap(), &Geometry::default()).unwrap();
+        let contacts = fabric.contacts().len();
+        let grabbed = fabric.stitch_node(24, 24, 4).unwrap() as u32;
+        let mut pins: Vec<Pin> = fabric
+            .side_nodes(yarn_topology::Side::Top)
+            .into_iter()
+            .map(|node| Pin { node, target: fabric.positions()[node as usize] })
+            .collect();
+        pins.push(Pin { node: grabbed, target: fabric.positions()[grabbed as usize] + yarn_topology::Vec3::z() * 3.0 });
+        let some_dead: Vec<bool> = (0..contacts).map(|k| k % 5 != 0).collect();
+        let run = |backend: &mut dyn Backend<Real = f32>, friction: f64| {
+            backend.load(&fabric, &Params { friction, gravity: 9.81, ..Params::default() }).unwrap();
+            backend.set_pins(&pins).unwrap();
+            backend.set_contacts_alive(&some_dead).unwrap();
+            let mut state = backend.state().unwrap();
+            for (i, v) in state.velocities.iter_mut().enumerate() {
+                let t = i as f32;
+                *v = V3::new((0.37 * t).sin(), (0.61 * t).cos(), (0.23 * t).sin()) * 5.0;
+            }
+            backend.write_state(&state).unwrap();
+            let forces = backend.forces().unwrap();
+            backend.advance(60).unwrap();
+            let half = backend.state().unwrap();
+            backend.set_contacts_alive(&vec![true; contacts]).unwrap();
+            let reseating = backend.model().unwrap().reseating().len();
+            backend.advance(60).unwrap();
+            (forces, half, reseating, backend.state().unwrap(), backend.forces().unwrap())
+        };
+        for friction in [0.3, 0.0] {
+            let serial = run(&mut Serial::<f32>::new(), friction);
+            let (_, half, reseating, end, _) = &serial;
+            let moved = end
+                .positions
+                .iter()
+                .zip(fabric.positions())
+                .map(|(p, q)| (p.cast::<f64>() - q).norm())
+                .fold(0.0, f64::max);
+            eprintln!("μ = {friction}: moved up to {moved:.2}, {reseating} of {contacts} contacts re-seated");
+            assert!(moved > 1.0 && reseating * 10 > contacts, "moved {moved}, {reseating} of {contacts} re-seated");
+            assert_ne!(half, end, "the second half did not move");
+            for threads in 1..=3 {
+                let rayon = run(&mut Rayon::with_threads(threads).unwrap(), friction);
+                let what = format!("μ = {friction}, {threads} threads");
+                assert_same(&rayon.0, &serial.0, &format!("{what}: forces at the start"));
+                assert_same(&rayon.1.positions, &serial.1.positions, &format!("{what}: positions at substep 60"));
+                assert_same(&rayon.1.velocities, &serial.1.velocities, &format!("{what}: velocities at substep 60"));
+                assert_eq!(rayon.2, serial.2, "{what}: re-seated contacts");
+                assert_same(&rayon.3.positions, &serial.3.positions, &format!("{what}: positions at substep 120"));
+                assert_same(&rayon.3.velocities, &serial.3.velocities, &format!("{what}: velocities at substep 120"));
+                assert_same(&rayon.4, &serial.4, &format!("{what}: forces at the end"));
+            }
+        }
+    }
+
     /// The conformance suite holds every f32 backend to `Reference<f32>`;
     /// this holds the f64 kernel, the ground truth of accuracy figures, to
     /// `Reference<f64>`, across block edges (1,152 nodes) and with friction.

@@ -3,15 +3,21 @@
 //! self-contacts, and parameters that are negative, zero, NaN, infinite or
 //! extreme, pushed through the public API of the topology, the model and
 //! the CPU and GPU backends. Every call must return a value or a typed
-//! error; a panic fails the test. The counts of inputs tried are printed.
+//! error; a panic fails the test.
+//!
+//! Each property counts how many of its inputs reach each layer (a fabric
+//! built, parameters the model accepts, a load and an advance on each
+//! backend), prints the counts and holds them to floors, so a generator
+//! that stops reaching a layer fails instead of fuzzing nothing.
 
+use std::cell::{Cell, RefCell};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use proptest::prelude::*;
-use yarn_backend_cpu::{Reference, Serial};
+use proptest::test_runner::{Config, TestRunner};
+use yarn_backend_cpu::{Rayon, Reference, Serial};
 use yarn_backend_wgpu::{Gpu, Mode, Wgpu};
-use yarn_model::{Backend, Params, State, V3};
+use yarn_model::{Backend, Model, Params, State, V3};
 use yarn_topology::{Boundary, Chart, Fabric, FabricParts, Geometry, Pin, Vec3};
 
 /// A number from the awkward corners and the ordinary middle.
@@ -57,62 +63,201 @@ fn point() -> impl Strategy<Value = Vec3> {
     ]
 }
 
-/// User parts: a few nodes (none included), some repeated, contacts and
-/// pins whose indices are mostly in range but may be past the end or equal,
-/// boundary lists of any length, and odd radii and directions.
-fn parts() -> impl Strategy<Value = FabricParts> {
-    (0usize..14)
-        .prop_flat_map(|n| {
-            // Mostly valid indices, sometimes one past the end or far out.
-            let index = move || prop_oneof![10 => 0..(n.max(1) as u32), 1 => Just(n as u32), 1 => Just(u32::MAX)];
-            (
-                prop::collection::vec(
-                    (prop_oneof![20 => point_ordinary(), 1 => point()], prop::bool::weighted(0.05)),
-                    n,
-                ),
-                prop::collection::vec((index(), index()), 0..10),
-                prop::collection::vec((index(), point()), 0..4),
-                prop_oneof![6 => Just(None), 1 => (0usize..16).prop_map(Some)],
-                prop_oneof![6 => Just(None), 1 => awkward().prop_map(Some), 2 => (0.1..1.0f64).prop_map(Some)],
-                prop_oneof![6 => Just(None), 1 => point().prop_map(Some)],
-            )
-        })
-        .prop_map(|(nodes, contacts, pins, boundary, yarn_radius, course)| {
-            let mut positions: Vec<Vec3> = Vec::new();
-            for (p, repeat) in nodes {
-                // A repeated node makes a zero-length segment.
-                positions.push(if repeat { positions.last().copied().unwrap_or(p) } else { p });
-            }
-            FabricParts {
-                positions,
-                contacts: contacts.into_iter().map(|(a, b)| [a, b]).collect(),
+fn point_ordinary() -> impl Strategy<Value = Vec3> {
+    (-20.0..20.0f64, -20.0..20.0f64, -2.0..2.0f64).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+}
+
+/// One way to spoil valid user parts, aimed at one error of
+/// [`Fabric::from_parts`] (an awkward value may turn out valid).
+#[derive(Debug, Clone)]
+enum Flaw {
+    /// No nodes at all.
+    NoNodes,
+    /// Node k repeats the one before it: a zero-length segment.
+    Repeat(usize),
+    /// Node k at an awkward point.
+    Position(usize, Vec3),
+    /// A contact naming a node past the end (or far out) at one end.
+    ContactPastEnd(u32),
+    /// A contact from node k to itself.
+    SelfContact(usize),
+    /// A pin on a node past the end (or far out).
+    PinPastEnd(u32),
+    /// A pin toward an awkward target.
+    PinTarget(Vec3),
+    /// A boundary list of another length.
+    Boundary(usize),
+    /// An awkward yarn radius.
+    Radius(f64),
+    /// An awkward course direction.
+    Course(Vec3),
+}
+
+fn flaw() -> impl Strategy<Value = Flaw> {
+    let far = || prop_oneof![Just(0u32), Just(u32::MAX)];
+    prop_oneof![
+        Just(Flaw::NoNodes),
+        any::<usize>().prop_map(Flaw::Repeat),
+        (any::<usize>(), point()).prop_map(|(k, p)| Flaw::Position(k, p)),
+        far().prop_map(Flaw::ContactPastEnd),
+        any::<usize>().prop_map(Flaw::SelfContact),
+        far().prop_map(Flaw::PinPastEnd),
+        point().prop_map(Flaw::PinTarget),
+        (0usize..16).prop_map(Flaw::Boundary),
+        awkward().prop_map(Flaw::Radius),
+        point().prop_map(Flaw::Course),
+    ]
+}
+
+/// Valid user parts: 1 to 13 nodes at ordinary points, contacts between
+/// distinct nodes, pins on nodes with ordinary targets, a boundary list of
+/// the right length or none, and an ordinary radius and direction or the
+/// defaults.
+fn valid_parts() -> impl Strategy<Value = FabricParts> {
+    (1usize..14).prop_flat_map(|n| {
+        let node = move || 0..n as u32;
+        (
+            prop::collection::vec(point_ordinary(), n),
+            prop::collection::vec((node(), 1..n.max(2) as u32), if n > 1 { 0..10 } else { 0..1 }),
+            prop::collection::vec((node(), point_ordinary()), 0..4),
+            any::<bool>(),
+            prop_oneof![Just(None), (0.1..1.0f64).prop_map(Some)],
+            prop_oneof![Just(None), point_ordinary().prop_map(Some)],
+        )
+            .prop_map(move |(positions, contacts, pins, boundary, yarn_radius, course)| FabricParts {
+                contacts: contacts.into_iter().map(|(a, step)| [a, (a + step) % n as u32]).collect(),
                 pins: pins.into_iter().map(|(node, target)| Pin { node, target }).collect(),
-                boundary: boundary.map(|n| vec![Boundary::INTERIOR; n]).unwrap_or_default(),
+                boundary: if boundary { vec![Boundary::INTERIOR; n] } else { Vec::new() },
+                positions,
                 yarn_radius,
                 course,
                 wale: None,
-            }
-        })
+            })
+    })
 }
 
-fn point_ordinary() -> impl Strategy<Value = Vec3> {
-    (-20.0..20.0f64, -20.0..20.0f64, -2.0..2.0f64).prop_map(|(x, y, z)| Vec3::new(x, y, z))
+/// User parts: valid about half the time, otherwise with one [`Flaw`].
+fn parts() -> impl Strategy<Value = FabricParts> {
+    (valid_parts(), prop_oneof![10 => Just(None), 10 => flaw().prop_map(Some)]).prop_map(|(mut parts, flaw)| {
+        let n = parts.positions.len();
+        match flaw {
+            None => {}
+            Some(Flaw::NoNodes) => parts.positions.clear(),
+            Some(Flaw::Repeat(k)) if n > 1 => parts.positions[1 + k % (n - 1)] = parts.positions[k % (n - 1)],
+            Some(Flaw::Repeat(_)) => parts.positions.push(parts.positions[0]),
+            Some(Flaw::Position(k, p)) => parts.positions[k % n] = p,
+            Some(Flaw::ContactPastEnd(far)) => parts.contacts.push([0, if far == 0 { n as u32 } else { far }]),
+            Some(Flaw::SelfContact(k)) => parts.contacts.push([(k % n) as u32; 2]),
+            Some(Flaw::PinPastEnd(far)) => {
+                parts.pins.push(Pin { node: if far == 0 { n as u32 } else { far }, target: Vec3::zeros() });
+            }
+            Some(Flaw::PinTarget(target)) => parts.pins.push(Pin { node: 0, target }),
+            Some(Flaw::Boundary(len)) => parts.boundary = vec![Boundary::INTERIOR; len],
+            Some(Flaw::Radius(r)) => parts.yarn_radius = Some(r),
+            Some(Flaw::Course(c)) => parts.course = Some(c),
+        }
+        parts
+    })
+}
+
+/// Contact liveness flags: the fabric's count or a random one.
+fn alive() -> impl Strategy<Value = (bool, Vec<bool>)> {
+    (any::<bool>(), prop::collection::vec(any::<bool>(), 0..12))
+}
+
+fn alive_for(fabric: &Fabric, (fit, bits): &(bool, Vec<bool>)) -> Vec<bool> {
+    if *fit && !bits.is_empty() {
+        (0..fabric.contacts().len()).map(|k| bits[k % bits.len()]).collect()
+    } else {
+        bits.clone()
+    }
 }
 
 /// Inputs per property.
 const CASES: u32 = 1000;
 
-static CHARTS: AtomicU64 = AtomicU64::new(0);
-static PARTS: AtomicU64 = AtomicU64::new(0);
-static RUNS: AtomicU64 = AtomicU64::new(0);
-
 fn gpu() -> Option<Arc<Gpu>> {
     yarn_backend_wgpu::testing::shared_gpu()
 }
 
+/// How many of one property's inputs reached each layer.
+#[derive(Debug, Default)]
+struct Reach {
+    tried: Cell<u64>,
+    /// A fabric was built.
+    topology: Cell<u64>,
+    /// [`Model::new`] accepted the fabric and the parameters.
+    model: Cell<u64>,
+    /// Per backend: loads that succeeded, each followed by an advance.
+    backends: RefCell<Vec<(String, u64)>>,
+}
+
+/// The least a property's inputs must reach, out of [`CASES`].
+#[derive(Debug)]
+struct Floors {
+    topology: u64,
+    model: u64,
+    /// For every backend, GPU ones included where there is a GPU.
+    backend: u64,
+}
+
+impl Reach {
+    fn bump(counter: &Cell<u64>) {
+        counter.set(counter.get() + 1);
+    }
+
+    fn ran(&self, name: String) {
+        let mut backends = self.backends.borrow_mut();
+        match backends.iter_mut().find(|(known, _)| *known == name) {
+            Some((_, count)) => *count += 1,
+            None => backends.push((name, 1)),
+        }
+    }
+
+    /// Print the counts beside `floors` and hold them to it; every
+    /// backend of `expected` must have run.
+    fn check(&self, property: &str, floors: &Floors, expected: &[String]) {
+        let tried = self.tried.get();
+        eprintln!("fuzz {property}: {tried} inputs");
+        let mut layers = vec![("topology".to_string(), self.topology.get(), floors.topology)];
+        layers.push(("model".to_string(), self.model.get(), floors.model));
+        for name in expected {
+            let count = self.backends.borrow().iter().find(|(known, _)| known == name).map_or(0, |(_, c)| *c);
+            layers.push((name.clone(), count, floors.backend));
+        }
+        for (layer, count, floor) in &layers {
+            eprintln!("  {layer:>16}: {count:>4} reached (floor {floor})");
+        }
+        for (layer, count, floor) in layers {
+            assert!(count >= floor, "{property}: only {count} of {tried} inputs reached {layer}, floor {floor}");
+        }
+    }
+}
+
+/// The backends every built fabric goes through, by name; the GPU ones
+/// only where there is a GPU.
+fn backend_names() -> Vec<String> {
+    let mut names = vec![Serial::<f32>::new().name(), Serial::<f64>::new().name(), Reference::<f64>::new().name()];
+    names.push(Rayon::new().name());
+    if let Some(gpu) = gpu() {
+        names.push(Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather).name());
+        names.push(Wgpu::with_gpu(gpu, Mode::FixedPointAtomic).name());
+    }
+    names
+}
+
 /// Everything a user can do to a loaded backend, with the fuzzed inputs;
-/// each result is either fine or an error, never a panic.
-fn exercise<B: Backend>(mut backend: B, fabric: &Fabric, params: &Params, pins: &[Pin], alive: &[bool], flung: f64) {
+/// each result is either fine or an error, never a panic. A load that
+/// succeeds counts toward `reach`.
+fn exercise<B: Backend>(
+    reach: &Reach,
+    mut backend: B,
+    fabric: &Fabric,
+    params: &Params,
+    pins: &[Pin],
+    alive: &[bool],
+    flung: f64,
+) {
     if backend.load(fabric, params).is_err() {
         return;
     }
@@ -120,6 +265,7 @@ fn exercise<B: Backend>(mut backend: B, fabric: &Fabric, params: &Params, pins: 
     let _ = backend.set_pins(pins);
     let _ = backend.set_contacts_alive(alive);
     let _ = backend.advance(5);
+    reach.ran(backend.name());
     if let Ok(mut state) = backend.state() {
         if let Some(v) = state.velocities.first_mut() {
             v.x = <B::Real as yarn_model::Real>::of(flung);
@@ -131,59 +277,94 @@ fn exercise<B: Backend>(mut backend: B, fabric: &Fabric, params: &Params, pins: 
     let short = State::<B::Real> { positions: vec![V3::zeros(); 1], velocities: Vec::new() };
     assert!(backend.write_state(&short).is_err() || fabric.node_count() == 1);
     let _ = backend.state();
-    RUNS.fetch_add(1, Ordering::Relaxed);
 }
 
-proptest! {
-    #![proptest_config(ProptestConfig { cases: CASES, ..ProptestConfig::default() })]
-
-    #[test]
-    fn charts_of_any_size_build_or_say_why(
-        width in prop_oneof![0usize..6, Just(1 << 40), Just(usize::MAX)],
-        height in prop_oneof![0usize..6, Just(1 << 40), Just(usize::MAX)],
-        geometry in prop::array::uniform4(prop_oneof![3 => Just(None), 1 => awkward().prop_map(Some)]),
-    ) {
-        let d = Geometry::default();
-        let g = Geometry {
-            stitch_width: geometry[0].unwrap_or(d.stitch_width),
-            stitch_height: geometry[1].unwrap_or(d.stitch_height),
-            yarn_radius: geometry[2].unwrap_or(d.yarn_radius),
-            ..d
-        };
-        CHARTS.fetch_add(1, Ordering::Relaxed);
-        if let Ok(chart) = Chart::stockinette(width, height)
-            && let Ok(fabric) = Fabric::from_chart(&chart, &g)
-        {
-            prop_assert!(fabric.node_count() > 0);
-            prop_assert!(fabric.positions().iter().all(|p| p.iter().all(|c| c.is_finite())));
-        }
+/// A built fabric through the model and every backend.
+fn simulate(reach: &Reach, fabric: &Fabric, params: &Params, pins: &[Pin], alive: &[bool], flung: f64) {
+    Reach::bump(&reach.topology);
+    if Model::<f64>::new(fabric, params).is_ok() {
+        Reach::bump(&reach.model);
     }
+    exercise(reach, Serial::<f32>::new(), fabric, params, pins, alive, flung);
+    exercise(reach, Serial::<f64>::new(), fabric, params, pins, alive, flung);
+    exercise(reach, Reference::<f64>::new(), fabric, params, pins, alive, flung);
+    exercise(reach, Rayon::new(), fabric, params, pins, alive, flung);
+    if let Some(gpu) = gpu() {
+        exercise(reach, Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather), fabric, params, pins, alive, flung);
+        exercise(reach, Wgpu::with_gpu(gpu, Mode::FixedPointAtomic), fabric, params, pins, alive, flung);
+    }
+}
 
-    #[test]
-    fn user_parts_and_parameters_never_panic(
-        parts in parts(),
-        params in params(),
-        pins in prop::collection::vec((0u32..16, point()), 0..3),
-        alive in prop::collection::vec(any::<bool>(), 0..12),
-        flung in awkward(),
-    ) {
-        if PARTS.fetch_add(1, Ordering::Relaxed) + 1 == u64::from(CASES) {
-            eprintln!(
-                "fuzz: {} chart inputs and {CASES} user-part inputs so far; {} backend runs on the parts that built",
-                CHARTS.load(Ordering::Relaxed),
-                RUNS.load(Ordering::Relaxed)
-            );
-        }
-        let pins: Vec<Pin> = pins.into_iter().map(|(node, target)| Pin { node, target }).collect();
-        let _ = params.validate();
-        if let Ok(fabric) = Fabric::from_parts(parts) {
-            exercise(Serial::<f32>::new(), &fabric, &params, &pins, &alive, flung);
-            exercise(Serial::<f64>::new(), &fabric, &params, &pins, &alive, flung);
-            exercise(Reference::<f64>::new(), &fabric, &params, &pins, &alive, flung);
-            if let Some(gpu) = gpu() {
-                exercise(Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather), &fabric, &params, &pins, &alive, flung);
-                exercise(Wgpu::with_gpu(gpu, Mode::FixedPointAtomic), &fabric, &params, &pins, &alive, flung);
+fn runner() -> TestRunner {
+    // An integration test has no lib.rs for proptest to file regressions
+    // beside; a failure prints its minimal input instead.
+    TestRunner::new(Config { cases: CASES, failure_persistence: None, ..Config::default() })
+}
+
+fn pins() -> impl Strategy<Value = Vec<Pin>> {
+    prop::collection::vec((0u32..16, point()).prop_map(|(node, target)| Pin { node, target }), 0..3)
+}
+
+/// Half of the fewest that four runs of the 1,000 charts reached: 314–319
+/// built, 166–190 accepted by the model, and as many on every backend
+/// (lavapipe for the GPU ones).
+const CHART_FLOORS: Floors = Floors { topology: 157, model: 83, backend: 83 };
+
+/// Half of the fewest that four runs of the 1,000 user parts reached:
+/// 657–671 built, 375–398 accepted by the model, and as many on every
+/// backend (lavapipe for the GPU ones).
+const PART_FLOORS: Floors = Floors { topology: 328, model: 187, backend: 187 };
+
+#[test]
+fn charts_of_any_size_build_or_say_why() {
+    let size = || prop_oneof![8 => 1usize..6, 1 => Just(0usize), 1 => Just(1 << 40), 1 => Just(usize::MAX)];
+    let inputs = (
+        size(),
+        size(),
+        prop::array::uniform4(prop_oneof![6 => Just(None), 1 => awkward().prop_map(Some)]),
+        params(),
+        pins(),
+        alive(),
+        awkward(),
+    );
+    let reach = Reach::default();
+    runner()
+        .run(&inputs, |(width, height, geometry, params, pins, alive, flung)| {
+            Reach::bump(&reach.tried);
+            let d = Geometry::default();
+            let g = Geometry {
+                stitch_width: geometry[0].unwrap_or(d.stitch_width),
+                stitch_height: geometry[1].unwrap_or(d.stitch_height),
+                yarn_radius: geometry[2].unwrap_or(d.yarn_radius),
+                loop_height: geometry[3].unwrap_or(d.loop_height),
+                ..d
+            };
+            if let Ok(chart) = Chart::stockinette(width, height)
+                && let Ok(fabric) = Fabric::from_chart(&chart, &g)
+            {
+                prop_assert!(fabric.node_count() > 0);
+                prop_assert!(fabric.positions().iter().all(|p| p.iter().all(|c| c.is_finite())));
+                simulate(&reach, &fabric, &params, &pins, &alive_for(&fabric, &alive), flung);
             }
-        }
-    }
+            Ok(())
+        })
+        .unwrap();
+    reach.check("charts", &CHART_FLOORS, &backend_names());
+}
+
+#[test]
+fn user_parts_and_parameters_never_panic() {
+    let inputs = (parts(), params(), pins(), alive(), awkward());
+    let reach = Reach::default();
+    runner()
+        .run(&inputs, |(parts, params, pins, alive, flung)| {
+            Reach::bump(&reach.tried);
+            let _ = params.validate();
+            if let Ok(fabric) = Fabric::from_parts(parts) {
+                simulate(&reach, &fabric, &params, &pins, &alive_for(&fabric, &alive), flung);
+            }
+            Ok(())
+        })
+        .unwrap();
+    reach.check("user parts", &PART_FLOORS, &backend_names());
 }
