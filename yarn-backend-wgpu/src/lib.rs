@@ -62,6 +62,7 @@ mod gpu;
 mod layout;
 mod record;
 pub mod shaders;
+#[cfg(not(target_arch = "wasm32"))]
 pub mod testing;
 mod timing;
 

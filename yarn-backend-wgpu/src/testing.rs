@@ -1,7 +1,7 @@
-//! How yarnify's own test suites treat a machine without a GPU: a test
-//! that needs one is skipped, and the skip is counted, only when there is
-//! no adapter at all and nothing asked for one in particular. Any other
-//! failure to open the GPU fails the test.
+//! How yarnify's own test suites (native ones; not in the browser) treat a
+//! machine without a GPU: a test that needs one is skipped, and the skip is
+//! counted, only when there is no adapter at all and nothing asked for one
+//! in particular. Any other failure to open the GPU fails the test.
 //!
 //! libtest has no skip at run time, and it hides what a passing test
 //! prints. So a skip writes one [`SKIP_MARKER`] line straight to the
