@@ -448,7 +448,7 @@ pub fn soak_table(reports: &[SoakReport]) -> String {
 /// Contacts an unravelling action releases, from the loose end: a
 /// sixteenth of the 16x16 patch's 480, so the fabric comes apart and is
 /// knitted back up about every 10,000 substeps.
-const UNRAVEL: usize = 30;
+pub const UNRAVEL: usize = 30;
 
 /// Run a 16x16 patch for `substeps` substeps in chunks of 100, taking a
 /// random action before each chunk: grab a random node and drag it up to
