@@ -22,7 +22,7 @@
 //! # }
 //! ```
 
-use std::collections::HashSet;
+use std::collections::BTreeSet;
 use std::io::Write;
 use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
@@ -72,10 +72,10 @@ pub fn skip(reason: &str) {
             panic!("{var} is set, so the GPU tests must run, but: {reason}");
         }
     }
-    static SKIPPED: Mutex<Option<HashSet<String>>> = Mutex::new(None);
+    static SKIPPED: Mutex<BTreeSet<String>> = Mutex::new(BTreeSet::new());
     let test = std::thread::current().name().unwrap_or("unnamed test").to_owned();
     let mut skipped = SKIPPED.lock().unwrap_or_else(PoisonError::into_inner);
-    if skipped.get_or_insert_with(HashSet::new).insert(test.clone()) {
+    if skipped.insert(test.clone()) {
         let reason = reason.lines().next().unwrap_or("");
         // Straight to the file descriptor: `eprintln!` would be captured.
         let _ = std::io::stderr().write_all(format!("\n{SKIP_MARKER} {test}: {reason}\n").as_bytes());

@@ -217,17 +217,16 @@ impl TrajectoryErrors {
     }
 }
 
-/// Run `scene` for [`TRAJECTORY_STEPS`] substeps on a backend and on the
+/// Run `scene` for [`TRAJECTORY_STEPS`] substeps on `backend` and on the
 /// reference, reviving every contact the scene released half way, so each
 /// backend's re-seating ([`yarn_model::Reseat`]) is compared too; and twice
 /// more on the reference from starts nudged by one ulp.
 ///
 /// # Panics
 /// When a backend fails: this is a test helper.
-pub fn trajectory_errors<B: Backend<Real = f32>>(make: impl Fn() -> B, scene: &Scene) -> TrajectoryErrors {
-    let mut backend = make();
-    scene.load(&mut backend).expect("load");
-    let got = revived_trajectory(&mut backend, &scene.alive).expect("advance");
+pub fn trajectory_errors<B: Backend<Real = f32>>(backend: &mut B, scene: &Scene) -> TrajectoryErrors {
+    scene.load(backend).expect("load");
+    let got = revived_trajectory(backend, &scene.alive).expect("advance");
     let mut reference = scene.reference();
     let want = revived_trajectory(&mut reference, &scene.alive).expect("reference advance");
     let r = scene.fabric.yarn_radius();
@@ -260,8 +259,9 @@ pub fn trajectory_matches_reference<B: Backend<Real = f32>>(
     scene: &Scene,
     tol: &Tolerance,
 ) -> Option<TrajectoryErrors> {
-    let name = make().name();
-    let errors = trajectory_errors(make, scene);
+    let mut backend = make();
+    let errors = trajectory_errors(&mut backend, scene);
+    let name = backend.name();
     if errors.too_chaotic() {
         return None;
     }
