@@ -200,6 +200,23 @@ fn preconditioner(model: &Model<f64>, pinned: &[bool]) -> Option<Profile> {
     p.factorise().then_some(p)
 }
 
+/// The displacement K⁻¹F that the fabric's linear stiffness K (springs,
+/// contacts and bends, the matrix that preconditions [`solve`]) predicts
+/// the forces `forces` would still cause, pinned nodes held: what is left
+/// to move, if the fabric responded linearly from here. `None` when K is
+/// not positive definite.
+pub fn predicted_displacement(model: &Model<f64>, forces: &[V3<f64>]) -> Option<Vec<V3<f64>>> {
+    let mut pinned = vec![false; model.node_count()];
+    for &(node, _) in model.pins() {
+        pinned[node as usize] = true;
+    }
+    let factor = preconditioner(model, &pinned)?;
+    let mut x: Vec<V3<f64>> =
+        forces.iter().zip(&pinned).map(|(f, &pin)| if pin { V3::zeros() } else { *f }).collect();
+    factor.solve(&mut x);
+    Some(x)
+}
+
 /// One L-BFGS correction pair: the step s and the change of gradient y.
 type Pair = (Vec<V3<f64>>, Vec<V3<f64>>);
 
