@@ -28,7 +28,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         [("4x4 hung, g = 9.81", 4, true, 200_000), ("16x16 free (the gate)", 16, false, 200_000)]
     {
         let fabric = Fabric::from_chart(&Chart::stockinette(size, size)?, &Geometry::default())?;
-        let params = Params { friction: 0.0, gravity: if hung { 9.81 } else { 0.0 }, ..Params::gate() };
+        let params = Params { friction: 0.0, gravity: if hung { 9.81 } else { 0.0 }, ..Params::paper() };
         let rest = fabric.positions();
         let pins: Vec<Pin> = if hung {
             fabric.side_nodes(Side::Top).into_iter().map(|node| Pin { node, target: rest[node as usize] }).collect()

@@ -125,7 +125,7 @@ fn max_diff_f64(a: &[V3<f32>], b: &[V3<f64>]) -> f64 {
 /// When the patch cannot be built or a backend fails.
 pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCheckReport, GateError> {
     let fabric = Fabric::from_chart(&Chart::stockinette(width, height)?, &Geometry::default())?;
-    let params = Params::gate();
+    let params = Params::paper();
     let mut reference = Serial::<f32>::new();
     reference.load(&fabric, &params)?;
     let want_forces = reference.forces()?;

@@ -15,6 +15,7 @@
 
 mod backends;
 pub mod bench;
+pub mod certificate;
 pub mod check;
 mod cli;
 pub mod conformance;
@@ -23,7 +24,9 @@ pub mod metrics;
 pub mod pareto;
 mod plot;
 pub mod plotdata;
+pub mod preset;
 pub mod render;
+pub mod settle;
 pub mod stress;
 
 pub use cli::Outcome;

@@ -6,7 +6,7 @@ use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 use yarn_model::statics::{self, StaticOptions};
 use yarn_model::{Backend, BackendError, Model, State, step, widen};
-use yarn_topology::{Fabric, Pin, Side};
+use yarn_topology::{Fabric, Pin, SEG, Side};
 
 /// One sample of a relaxation.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -119,6 +119,91 @@ pub fn curl(fabric: &Fabric, positions: &[Vector3<f64>]) -> Option<Curl> {
     Some(Curl { course: family(|b| b.on_course_edge())?, wale: family(|b| b.on_wale_edge())? })
 }
 
+/// The resting size of a patch generated from a chart, measured so that a
+/// curled edge does not shrink it: the arc length of the line through the
+/// stitch centres of the middle row (width) and of the middle column
+/// (height), from the first stitch's centre to the last's. A stitch's
+/// centre is the mean of its loop's nodes (phases 1 to SEG − 1, which
+/// every row has). At assembly these are (W − 1) and (H − 1) stitch
+/// pitches.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Extent {
+    /// Arc length along the middle row, in model units.
+    pub width: f64,
+    /// Arc length up the middle column, in model units.
+    pub height: f64,
+}
+
+/// The [`Extent`] of `fabric` at `positions`; `None` for a fabric not
+/// generated from a chart, or one stitch wide or high.
+pub fn extent(fabric: &Fabric, positions: &[Vector3<f64>]) -> Option<Extent> {
+    let (w, h) = fabric.grid()?;
+    if w < 2 || h < 2 {
+        return None;
+    }
+    let centre = |column: usize, row: usize| -> Option<Vector3<f64>> {
+        let nodes: Option<Vec<usize>> = (1..SEG).map(|p| fabric.stitch_node(column, row, p)).collect();
+        let nodes = nodes?;
+        Some(nodes.iter().map(|&i| positions[i]).sum::<Vector3<f64>>() / nodes.len() as f64)
+    };
+    let arc = |points: Option<Vec<Vector3<f64>>>| -> Option<f64> {
+        Some(points?.windows(2).map(|p| (p[1] - p[0]).norm()).sum())
+    };
+    Some(Extent {
+        width: arc((0..w).map(|column| centre(column, h / 2)).collect())?,
+        height: arc((0..h).map(|row| centre(w / 2, row)).collect())?,
+    })
+}
+
+/// The rigid motion (rotation, then translation) that best maps the
+/// assembled interior of `fabric` onto its interior at `positions`, in the
+/// least-squares sense (Kabsch): the frame a relaxed patch sits in.
+fn interior_frame(fabric: &Fabric, positions: &[Vector3<f64>]) -> (Matrix3<f64>, Vector3<f64>) {
+    let pairs: Vec<(Vector3<f64>, Vector3<f64>)> = fabric
+        .positions()
+        .iter()
+        .zip(positions)
+        .zip(fabric.boundary())
+        .filter(|(_, b)| b.is_interior())
+        .map(|((a, p), _)| (*a, *p))
+        .collect();
+    let count = pairs.len().max(1) as f64;
+    let (from, to) = pairs.iter().fold((Vector3::zeros(), Vector3::zeros()), |(f, t), (a, p)| (f + a, t + p));
+    let (from, to) = (from / count, to / count);
+    let covariance = pairs.iter().map(|(a, p)| (p - to) * (a - from).transpose()).sum::<Matrix3<f64>>();
+    let svd = covariance.svd(true, true);
+    let (u, v_t) = (svd.u.expect("asked for U"), svd.v_t.expect("asked for V^T"));
+    // A reflection is not a rigid motion: flip the least axis if needed.
+    let sign = (u * v_t).determinant().signum();
+    let rotation = u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, sign)) * v_t;
+    (rotation, to - rotation * from)
+}
+
+/// The grips of a stiffness hold along `axis` that clamp each gripped edge
+/// straight: each edge's nodes held in their assembled (flat) layout,
+/// carried rigidly into the frame the patch at `positions` sits in
+/// ([`interior_frame`]), with the far grip moved along the axis until the
+/// grips' centroids are `separation` apart.
+pub fn straight_grips(fabric: &Fabric, positions: &[Vector3<f64>], axis: Axis, separation: f64) -> Vec<Pin> {
+    let (near, far) = axis.grips();
+    let (near_nodes, far_nodes) = (fabric.side_nodes(near), fabric.side_nodes(far));
+    let assembled = fabric.positions();
+    let direction = axis.direction(fabric);
+    let mean = |nodes: &[u32]| nodes.iter().map(|&i| assembled[i as usize]).sum::<Vector3<f64>>() / nodes.len() as f64;
+    let shift = direction * (separation - (mean(&far_nodes) - mean(&near_nodes)).dot(&direction));
+    let (rotation, translation) = interior_frame(fabric, positions);
+    let place = |node: u32, offset: Vector3<f64>| Pin {
+        node,
+        target: rotation * (assembled[node as usize] + offset) + translation,
+    };
+    near_nodes.iter().map(|&n| place(n, Vector3::zeros())).chain(far_nodes.iter().map(|&n| place(n, shift))).collect()
+}
+
+/// The direction of `axis` in the frame the patch at `positions` sits in.
+pub fn axis_in_frame(fabric: &Fabric, positions: &[Vector3<f64>], axis: Axis) -> Vector3<f64> {
+    interior_frame(fabric, positions).0 * axis.direction(fabric)
+}
+
 /// A fabric axis to pull along.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -130,14 +215,16 @@ pub enum Axis {
 }
 
 impl Axis {
-    fn grips(self) -> (Side, Side) {
+    /// The two sides gripped: (near, far).
+    pub fn grips(self) -> (Side, Side) {
         match self {
             Axis::Course => (Side::Left, Side::Right),
             Axis::Wale => (Side::Bottom, Side::Top),
         }
     }
 
-    fn direction(self, fabric: &Fabric) -> Vector3<f64> {
+    /// The fabric's direction along this axis, as assembled.
+    pub fn direction(self, fabric: &Fabric) -> Vector3<f64> {
         match self {
             Axis::Course => fabric.course(),
             Axis::Wale => fabric.wale(),

@@ -256,7 +256,7 @@ impl Problem {
     /// Its parameters at substep `h`.
     fn params(self, h: f64) -> Params {
         let gravity = if self == Problem::Drape { 9.81 } else { 0.0 };
-        Params { substep: h, gravity, ..Params::gate() }
+        Params { substep: h, gravity, ..Params::paper() }
     }
 
     /// The pins at simulated time `t` of a run lasting `duration`.

@@ -64,7 +64,7 @@ impl PlotdataArgs {
             with_backend(&self.backend, 0, &mut Measure { args: self, progress: &mut phases(bar) })
         })?;
         let mut written = Vec::new();
-        written.extend(figure2(&self.out, &relaxation, Params::gate().substep)?);
+        written.extend(figure2(&self.out, &relaxation, Params::paper().substep)?);
         written.extend(figure3(&self.out, &probes)?);
         let config = BenchConfig { repeats: 3, work_per_run: 2_000_000, ..BenchConfig::default() };
         let rows = for_each_backend(&self.scaling, 0, &mut Benchmark { config: &config })?.concat();
@@ -101,7 +101,7 @@ pub fn measure<B: Backend>(
     progress: &mut dyn FnMut(&'static str, u64, u64),
 ) -> Result<(Relaxation, Vec<Stiffness>), GateError> {
     let fabric = Fabric::from_chart(&Chart::stockinette(width, height)?, &Geometry::default())?;
-    let params = Params::gate();
+    let params = Params::paper();
     backend.load(&fabric, &params)?;
     let relaxation = metrics::relax(backend, &fabric, steps, 200, |done| progress("relax", done, steps))?;
     let relaxed = backend.state()?.cast::<f64>();

@@ -92,7 +92,7 @@ impl BackendWork for Relax<'_> {
     type Output = Vec<[f32; 3]>;
 
     fn run<B: Backend>(&mut self, _name: &str, mut backend: B) -> Result<Vec<[f32; 3]>, GateError> {
-        backend.load(self.fabric, &Params::gate())?;
+        backend.load(self.fabric, &Params::paper())?;
         let chunk = (self.steps / 100).max(1);
         let mut done = 0;
         while done < self.steps {

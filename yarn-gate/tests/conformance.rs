@@ -116,7 +116,7 @@ fn f32_drift_over_the_gate_relaxation() {
     ];
     let fabric = Fabric::from_chart(&Chart::stockinette(16, 16).unwrap(), &Geometry::default()).unwrap();
     for (steps, max, rms, energy) in BOUNDS {
-        let drift = conformance::f32_drift(&fabric, &Params::gate(), steps).unwrap();
+        let drift = conformance::f32_drift(&fabric, &Params::paper(), steps).unwrap();
         println!(
             "serial f32 vs f64 after {steps} substeps: max {:.3e} r (bound {max:e}), rms {:.3e} r (bound {rms:e}), \
              energy {:.2e} (bound {energy:e})",

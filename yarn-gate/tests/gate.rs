@@ -1,5 +1,7 @@
-//! The gate itself, run as tests: the default patch must pass, κ = 1 must
-//! read flat, and the CLI must keep its JSON interface and exit codes.
+//! The gate itself, run as tests: the paper preset must pass its gate and
+//! reproduce its figures bit for bit, the default gate must certify rest
+//! and survive doubling, κ = 1 must read flat, and the CLI must keep its
+//! JSON interface and exit codes.
 
 use std::process::{Command, Output};
 
@@ -22,8 +24,52 @@ fn no_adapter(output: &Output) -> bool {
     missing
 }
 
+/// `check --preset paper --json` prints, byte for byte, what `check --json`
+/// printed before the gate at rest existed: the file was written by
+/// `yarn-gate check --json` at commit 14e433f.
 #[test]
-fn default_patch_passes_the_gate() {
+fn paper_preset_reproduces_the_paper_gate_bit_for_bit() {
+    let output =
+        Command::new(env!("CARGO_BIN_EXE_yarn-gate")).args(["check", "--preset", "paper", "--json"]).output().unwrap();
+    let expected = include_str!("data/paper_check_16x16.json");
+    assert_eq!(String::from_utf8_lossy(&output.stdout), expected);
+    assert!(output.status.success());
+}
+
+/// The default gate on 16x16 certifies its rest and every hold, and
+/// doubling the work moves each curl by less than 0.05 r (or 5 %), and
+/// each stiffness, the width and the height by less than 5 %.
+#[test]
+fn default_gate_certifies_rest_and_doubling_moves_nothing() {
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate")).args(["check", "--json"]).output().unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("stdout is one JSON object");
+    let figure =
+        |path: &str| json.pointer(path).and_then(serde_json::Value::as_f64).unwrap_or_else(|| panic!("{path}"));
+    assert_eq!(json["preset"], "default");
+    assert_eq!(json["path"], "static");
+    assert_eq!(json["rest"]["certificate"]["certified"], true, "{}", json["rest"]);
+    for hold in 0..2 {
+        for which in ["unstrained", "strained"] {
+            let certificate = &json["holds"][hold][which]["certificate"];
+            assert_eq!(certificate["certified"], true, "hold {hold} {which}: {certificate}");
+        }
+    }
+    for curl in ["curl_course", "curl_wale"] {
+        let (at, moved) = (figure(&format!("/figures/{curl}")), figure(&format!("/doubling/moved/{curl}")));
+        println!("{curl}: {at:+.4} r, doubling moved it {moved:.2e} r");
+        assert!(moved < 0.05_f64.max(0.05 * at.abs()), "{curl} moved {moved} r from {at} r");
+    }
+    for key in ["stiffness_course", "stiffness_wale", "width", "height"] {
+        let moved = figure(&format!("/doubling/moved/{key}"));
+        println!("{key}: {}, doubling moved it {:.3} %", figure(&format!("/figures/{key}")), 100.0 * moved);
+        assert!(moved < 0.05, "{key} moved {moved} of itself");
+    }
+    assert!(json["doubling"]["rest"]["work"].as_u64().unwrap() > json["rest"]["work"].as_u64().unwrap());
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stdout));
+}
+
+#[test]
+fn paper_patch_passes_the_paper_gate() {
     let report = run_check(Serial::<f64>::new(), &CheckConfig::default(), &mut |_, _, _| {}).unwrap();
     assert_eq!((report.nodes, report.contacts), (2048, 480));
     assert!(report.energy_final < 0.5 * report.energy_initial, "{} -> {}", report.energy_initial, report.energy_final);
@@ -40,7 +86,7 @@ fn rest_curl_one_reads_flat() {
     let fabric = Fabric::from_chart(&Chart::stockinette(8, 8).unwrap(), &Geometry::default()).unwrap();
     let curl_after = |rest_curl: f64| {
         let mut backend = Serial::<f64>::new();
-        backend.load(&fabric, &Params { rest_curl, ..Params::gate() }).unwrap();
+        backend.load(&fabric, &Params { rest_curl, ..Params::paper() }).unwrap();
         backend.advance(3000).unwrap();
         metrics::curl(&fabric, &backend.state().unwrap().positions).unwrap()
     };
@@ -53,7 +99,7 @@ fn rest_curl_one_reads_flat() {
 #[test]
 fn cli_json_has_the_documented_keys_and_exit_code_follows_pass() {
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
-        .args(["check", "--size", "5x4", "--steps", "600", "--backend", "serial-f32", "--json"])
+        .args(["check", "--preset", "paper", "--size", "5x4", "--steps", "600", "--backend", "serial-f32", "--json"])
         .output()
         .unwrap();
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("stdout is one JSON object");
@@ -81,13 +127,13 @@ fn cli_json_has_the_documented_keys_and_exit_code_follows_pass() {
     assert_eq!(output.status.success(), json["pass"].as_bool().unwrap());
 }
 
-/// `--solver static` brings the patch to rest by minimising its energy:
+/// The paper preset's `--solver static` brings the patch to rest by minimising its energy:
 /// the report says so, counts force evaluations in `steps`, and judges the
 /// residual force instead of a speed.
 #[test]
 fn cli_static_check_reports_its_solver_and_residual() {
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
-        .args(["check", "--size", "5x4", "--solver", "static", "--json"])
+        .args(["check", "--preset", "paper", "--size", "5x4", "--solver", "static", "--json"])
         .output()
         .unwrap();
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("stdout is one JSON object");

@@ -72,7 +72,18 @@ pub const SLEEP_AFTER: u32 = 100;
 pub const STABLE_FRACTION: f64 = 0.49;
 
 impl Default for Params {
+    /// The default model. It is the paper's ([`Params::paper`]) until a
+    /// later change to the model departs from it (SPEC §7).
     fn default() -> Self {
+        Self::paper()
+    }
+}
+
+impl Params {
+    /// The `paper` preset: the paper's Table 1 parameters (SPEC §1), with
+    /// gravity off as its gate runs them (SPEC §6). It keeps reproducing the
+    /// paper's figures whatever the default model becomes.
+    pub fn paper() -> Self {
         Self {
             // Paper Table 1: stiff enough that loops unbend before yarn stretches.
             stretch_stiffness: 800.0,
@@ -147,11 +158,6 @@ fn limit_note(bound: f64, analytic: f64) -> String {
 }
 
 impl Params {
-    /// The paper's parameters with gravity off: what the gate runs.
-    pub fn gate() -> Self {
-        Self::default()
-    }
-
     /// ω_max = sqrt(k_max / m) for the stiffest element, in 1/s (SPEC §1).
     ///
     /// k_max is the larger of the stretch and contact stiffnesses. Bending

@@ -211,8 +211,7 @@ pub fn predicted_displacement(model: &Model<f64>, forces: &[V3<f64>]) -> Option<
         pinned[node as usize] = true;
     }
     let factor = preconditioner(model, &pinned)?;
-    let mut x: Vec<V3<f64>> =
-        forces.iter().zip(&pinned).map(|(f, &pin)| if pin { V3::zeros() } else { *f }).collect();
+    let mut x: Vec<V3<f64>> = forces.iter().zip(&pinned).map(|(f, &pin)| if pin { V3::zeros() } else { *f }).collect();
     factor.solve(&mut x);
     Some(x)
 }

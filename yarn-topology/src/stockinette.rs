@@ -48,8 +48,17 @@ pub struct Geometry {
 }
 
 impl Default for Geometry {
-    /// The paper's Table 1 gauge.
+    /// The default geometry. It is the paper's ([`Geometry::paper`]) until
+    /// real knitted loops replace the arch (SPEC §7).
     fn default() -> Self {
+        Self::paper()
+    }
+}
+
+impl Geometry {
+    /// The `paper` preset: the paper's Table 1 gauge and its 8-node arch
+    /// (SPEC §1–2). It keeps reproducing the paper's figures.
+    pub fn paper() -> Self {
         Self { stitch_width: 5.0, stitch_height: 4.2, loop_height: 4.8, head_offset: 1.6, yarn_radius: 0.9 }
     }
 }

@@ -1,83 +1,20 @@
-//! The `check` gate (SPEC §6): relax a free patch, then read dissipation,
-//! curl and anisotropy, each against its pass criterion and beside the
-//! paper's figure.
+//! The `paper` preset's gate (SPEC §6): relax a free patch for a fixed
+//! window, then read dissipation, curl and anisotropy, each against its
+//! pass criterion and beside the paper's figure. It reproduces the
+//! paper's figures bit for bit; its verdict belongs to one moment of a
+//! transient ([`super::rest`] is the gate at a certified rest).
 //!
-//! This module owns the criteria, the report and the command
-//! ([`CheckArgs`]); the measurements are [`metrics`]'s, and it knows a
-//! backend only through [`Backend`].
+//! This module owns the criteria and the report; the measurements are
+//! [`metrics`]'s, and it knows a backend only through [`Backend`].
 
 use serde::Serialize;
 use yarn_model::statics::{self, StaticOptions};
 use yarn_model::{Backend, Model, Params, State, step};
 use yarn_topology::{Chart, Fabric, Geometry};
 
+use super::{Criterion, criteria_table};
 use crate::GateError;
-use crate::backends::{BackendWork, with_backend};
-use crate::cli::{Outcome, SUBSTEPS, parse_size, phases, with_bar};
 use crate::metrics::{self, Axis, Curl, Relaxation, Sample, Stiffness};
-
-/// `yarn-gate check`: run the gate once and judge it.
-#[derive(Debug, clap::Args)]
-pub struct CheckArgs {
-    /// Patch size in stitches, WIDTHxHEIGHT.
-    #[arg(long, default_value = "16x16", value_parser = parse_size)]
-    size: (usize, usize),
-    /// Substeps of free relaxation; each stiffness probe holds as long.
-    #[arg(long, default_value_t = 12_000)]
-    steps: u64,
-    /// Backend: serial (f64, the ground truth), serial-f32, rayon, wgpu
-    /// (gather), wgpu-fixed (f32), or reference-f32 / reference-f64 (the
-    /// element-by-element substep).
-    #[arg(long, default_value = "serial")]
-    backend: String,
-    /// Rest-curl fraction κ; 1 gives a patch that should read flat.
-    #[arg(long)]
-    rest_curl: Option<f64>,
-    /// How to bring the patch to rest: `dynamic` (the damped dynamics for
-    /// --steps substeps on --backend), or `static` (an energy minimum by a
-    /// quasi-static solve in f64, no friction; --steps and --backend are
-    /// not used).
-    #[arg(long, default_value = "dynamic", value_parser = ["dynamic", "static"])]
-    solver: String,
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    json: bool,
-}
-
-impl CheckArgs {
-    /// Run the gate; the outcome passes only if every criterion does.
-    ///
-    /// # Errors
-    /// As [`run_check`] and [`run_static_check`], and an unknown backend.
-    pub fn run(&self) -> Result<Outcome, GateError> {
-        let params = Params { rest_curl: self.rest_curl.unwrap_or(Params::gate().rest_curl), ..Params::gate() };
-        let config =
-            CheckConfig { width: self.size.0, height: self.size.1, steps: self.steps, pull_steps: self.steps, params };
-        let report = with_bar(self.steps, SUBSTEPS, "", |bar| {
-            let progress = &mut phases(bar);
-            if self.solver == "static" {
-                run_static_check(&config, &StaticOptions::default(), progress)
-            } else {
-                with_backend(&self.backend, 0, &mut Gate { config: &config, progress })
-            }
-        })?;
-        Ok(Outcome::json_or(&report, self.json, || report.table()).verdict(report.pass))
-    }
-}
-
-/// [`run_check`] on one backend.
-struct Gate<'a, 'p> {
-    config: &'a CheckConfig,
-    progress: &'p mut dyn FnMut(&'static str, u64, u64),
-}
-
-impl BackendWork for Gate<'_, '_> {
-    type Output = CheckReport;
-
-    fn run<B: Backend>(&mut self, _name: &str, backend: B) -> Result<CheckReport, GateError> {
-        run_check(backend, self.config, self.progress)
-    }
-}
 
 /// Final max speed must fall below this fraction of its peak during the
 /// release. The peak is the yardstick SPEC §6 suggests: it is what the
@@ -133,23 +70,8 @@ pub struct CheckConfig {
 impl Default for CheckConfig {
     /// The gate of SPEC §6: 16×16, 12,000 substeps, the paper's parameters.
     fn default() -> Self {
-        Self { width: 16, height: 16, steps: 12_000, pull_steps: 12_000, params: Params::gate() }
+        Self { width: 16, height: 16, steps: 12_000, pull_steps: 12_000, params: Params::paper() }
     }
-}
-
-/// One pass/fail criterion.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Criterion {
-    /// What is checked.
-    pub name: &'static str,
-    /// What we measured, in words.
-    pub measured: String,
-    /// What passes, in words.
-    pub threshold: String,
-    /// The paper's figure for the same quantity.
-    pub paper: &'static str,
-    /// Whether it passed.
-    pub pass: bool,
 }
 
 /// The result of `check`. The flat fields are the stable JSON interface.
@@ -209,7 +131,7 @@ pub fn run_check<B: Backend>(
     config: &CheckConfig,
     progress: &mut dyn FnMut(&'static str, u64, u64),
 ) -> Result<CheckReport, GateError> {
-    let fabric = Fabric::from_chart(&Chart::stockinette(config.width, config.height)?, &Geometry::default())?;
+    let fabric = Fabric::from_chart(&Chart::stockinette(config.width, config.height)?, &Geometry::paper())?;
     backend.load(&fabric, &config.params)?;
 
     let relaxation =
@@ -261,7 +183,7 @@ pub fn run_static_check(
     options: &StaticOptions,
     progress: &mut dyn FnMut(&'static str, u64, u64),
 ) -> Result<CheckReport, GateError> {
-    let fabric = Fabric::from_chart(&Chart::stockinette(config.width, config.height)?, &Geometry::default())?;
+    let fabric = Fabric::from_chart(&Chart::stockinette(config.width, config.height)?, &Geometry::paper())?;
     let model = Model::<f64>::new(&fabric, &config.params)?;
     let start = State::at_rest(&fabric);
     let mut relaxed = start.clone();
@@ -384,7 +306,7 @@ fn largest_rise(relaxation: &Relaxation) -> f64 {
 impl CheckReport {
     /// The human-readable table.
     pub fn table(&self) -> String {
-        let mut out = match self.solver {
+        let out = match self.solver {
             Solver::Dynamic => format!(
                 "yarn-gate check: {} patch, {} nodes, {} contacts, {} substeps, backend {}\n\n",
                 self.size, self.nodes, self.contacts, self.steps, self.backend
@@ -394,27 +316,6 @@ impl CheckReport {
                 self.size, self.nodes, self.contacts, self.steps
             ),
         };
-        let widths = [24, 44, 30, 42];
-        let row = |cells: [&str; 5]| {
-            format!(
-                "{:<w0$} {:<w1$} {:<w2$} {:<w3$} {}\n",
-                cells[0],
-                cells[1],
-                cells[2],
-                cells[3],
-                cells[4],
-                w0 = widths[0],
-                w1 = widths[1],
-                w2 = widths[2],
-                w3 = widths[3]
-            )
-        };
-        out += &row(["criterion", "measured", "pass when", "paper", "verdict"]);
-        for c in &self.criteria {
-            out += &row([c.name, &c.measured, &c.threshold, c.paper, if c.pass { "PASS" } else { "FAIL" }]);
-        }
-        out +=
-            &format!("\n{}\n", if self.pass { "PASS: every criterion holds" } else { "FAIL: see the criteria above" });
-        out
+        out + &criteria_table(&self.criteria, self.pass)
     }
 }
