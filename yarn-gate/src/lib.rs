@@ -76,6 +76,14 @@ pub enum GateError {
         /// The system's reason.
         reason: String,
     },
+    /// A relaxation spent its budget without a certified rest.
+    #[error("no certified rest after {work} units of work ({certificate}); raise the budget or relax longer")]
+    NotAtRest {
+        /// The work spent.
+        work: u64,
+        /// How far from rest it stopped.
+        certificate: String,
+    },
     /// The backend name is not known.
     #[error("unknown backend `{name}`; choose one of: {known}")]
     UnknownBackend {

@@ -9,13 +9,17 @@ use std::path::PathBuf;
 
 use indicatif::ProgressBar;
 use yarn_backend_wgpu::Gpu;
-use yarn_model::{Backend, Params, widen};
+use yarn_model::statics::StaticOptions;
+use yarn_model::{Backend, Params, State, widen};
 use yarn_render::{Renderer, View, tube_obj};
 use yarn_topology::{Chart, Fabric, Geometry};
 
 use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
+use crate::check::STATIC_BUDGET;
+use crate::check::rest::PROGRESS;
 use crate::cli::{Outcome, SUBSTEPS, parse_size, with_bar};
+use crate::settle::{Settle, Statics};
 
 /// `yarn-gate render`: relax, draw, save.
 #[derive(Debug, clap::Args)]
@@ -44,6 +48,10 @@ pub struct RenderArgs {
     /// Camera angle above the fabric's plane, in degrees.
     #[arg(long, default_value_t = 20.0)]
     elevation: f32,
+    /// Draw the certified rest that `check` measures (its frictionless
+    /// solve) instead of --steps substeps of the dynamics on --backend.
+    #[arg(long)]
+    at_rest: bool,
 }
 
 impl RenderArgs {
@@ -55,9 +63,13 @@ impl RenderArgs {
     /// cannot be written.
     pub fn run(&self) -> Result<Outcome, GateError> {
         let fabric = Fabric::from_chart(&Chart::stockinette(self.size.0, self.size.1)?, &Geometry::default())?;
-        let positions = with_bar(self.steps, SUBSTEPS, "relaxing", |bar| {
-            with_backend(&self.backend, 0, &mut Relax { fabric: &fabric, steps: self.steps, bar })
-        })?;
+        let positions = if self.at_rest {
+            at_rest(&fabric)?
+        } else {
+            with_bar(self.steps, SUBSTEPS, "relaxing", |bar| {
+                with_backend(&self.backend, 0, &mut Relax { fabric: &fabric, steps: self.steps, bar })
+            })?
+        };
         let radius = fabric.yarn_radius() as f32;
         let view = View {
             width: self.image.0 as u32,
@@ -78,6 +90,19 @@ impl RenderArgs {
         }
         Ok(Outcome::text(stdout))
     }
+}
+
+/// The positions of `fabric` at the rest `check` certifies, by its static
+/// path, in f32; an error if the rest did not certify within the budget.
+fn at_rest(fabric: &Fabric) -> Result<Vec<[f32; 3]>, GateError> {
+    let mut statics = Statics::new(fabric, &Params::default(), StaticOptions::default())?;
+    let rest = with_bar(STATIC_BUDGET, PROGRESS, "relax", |bar| {
+        statics.settle(&State::at_rest(fabric), &[], STATIC_BUDGET, &mut |done| bar.set_position(done))
+    })?;
+    if !rest.certificate.certified {
+        return Err(GateError::NotAtRest { work: rest.work, certificate: rest.certificate.describe() });
+    }
+    Ok(rest.state.positions.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect())
 }
 
 /// Advance a backend from rest by `steps` substeps, moving `bar`, and
