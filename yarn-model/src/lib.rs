@@ -34,6 +34,7 @@ mod real;
 mod rollback;
 mod simulation;
 pub mod stages;
+#[cfg(not(target_arch = "wasm32"))]
 pub mod statics;
 pub mod step;
 pub mod terms;
