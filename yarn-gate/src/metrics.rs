@@ -182,7 +182,7 @@ fn interior_frame(fabric: &Fabric, positions: &[Vector3<f64>]) -> (Matrix3<f64>,
 /// The grips of a stiffness hold along `axis` that clamp each gripped edge
 /// straight: each edge's nodes held in their assembled (flat) layout,
 /// carried rigidly into the frame the patch at `positions` sits in
-/// ([`interior_frame`]), with the far grip moved along the axis until the
+/// (a least-squares rigid fit of the interior), with the far grip moved along the axis until the
 /// grips' centroids are `separation` apart.
 pub fn straight_grips(fabric: &Fabric, positions: &[Vector3<f64>], axis: Axis, separation: f64) -> Vec<Pin> {
     let (near, far) = axis.grips();

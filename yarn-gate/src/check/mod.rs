@@ -74,7 +74,8 @@ impl CheckArgs {
     /// Run the gate; the outcome passes only if every criterion does.
     ///
     /// # Errors
-    /// As [`run_check`], [`run_static_check`] and [`rest::run`], and an
+    /// As [`run_check`], [`run_static_check`], [`rest::run_static`] and
+    /// [`rest::run_dynamic`], and an
     /// unknown backend.
     pub fn run(&self) -> Result<Outcome, GateError> {
         let mut params = self.preset.params();
