@@ -324,12 +324,6 @@ impl Probe {
     }
 }
 
-impl Clone for Probe {
-    fn clone(&self) -> Self {
-        Self { unstrained: self.unstrained.clone(), strained: self.strained.clone(), ..*self }
-    }
-}
-
 fn figures(fabric: &Fabric, state: &State<f64>, probes: [&Hold; 2]) -> Result<Figures, GateError> {
     let (width, height) = fabric.grid().unwrap_or((0, 0));
     let too_small = GateError::TooSmall { width, height };
