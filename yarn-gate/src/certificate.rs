@@ -35,8 +35,6 @@ use nalgebra::Vector3;
 use serde::Serialize;
 use yarn_model::statics::LinearStiffness;
 use yarn_model::{Model, State, V3, step};
-#[cfg(test)]
-use yarn_topology::Fabric;
 
 /// The largest Newton step at a certified rest, in yarn radii.
 pub const REST_DISPLACEMENT: f64 = 0.01;
@@ -286,7 +284,7 @@ fn newton_step(model: &Model<f64>, x: &[V3<f64>], forces: &[V3<f64>], free: &[bo
 mod tests {
     use yarn_backend_cpu::Serial;
     use yarn_model::{Backend, Params};
-    use yarn_topology::{Chart, Geometry};
+    use yarn_topology::{Chart, Fabric, Geometry};
 
     use super::*;
 

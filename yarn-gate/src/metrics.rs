@@ -325,17 +325,8 @@ fn probe(
     let direction = axis.direction(fabric);
     // Stretch about the near grip's mean position, so the grips move apart
     // by `strain` times their separation.
-    let origin = near_nodes.iter().map(|&i| relaxed.positions[i as usize].dot(&direction)).sum::<f64>()
-        / near_nodes.len() as f64;
     let mut hold = |strain: f64| -> Result<(Vector3<f64>, f64), BackendError> {
-        let pulled = State::<f64> {
-            positions: relaxed
-                .positions
-                .iter()
-                .map(|p| p + direction * (strain * (p.dot(&direction) - origin)))
-                .collect(),
-            velocities: vec![Vector3::zeros(); relaxed.len()],
-        };
+        let pulled = stretched(relaxed, &near_nodes, direction, strain);
         let pins: Vec<Pin> = near_nodes
             .iter()
             .chain(&far_nodes)
@@ -348,6 +339,17 @@ fn probe(
     let (strained, residual_speed) = hold(strain)?;
     let force = (strained - unstrained).norm();
     Ok(Stiffness { axis, strain, force, baseline: unstrained.norm(), stiffness: force / strain, residual_speed })
+}
+
+/// `state` stretched affinely by `strain` along `direction` about the mean
+/// position of the nodes `near` along it, at rest: a grip's pull, with no
+/// node left far from where the pull will leave it.
+pub fn stretched(state: &State<f64>, near: &[u32], direction: Vector3<f64>, strain: f64) -> State<f64> {
+    let origin = near.iter().map(|&i| state.positions[i as usize].dot(&direction)).sum::<f64>() / near.len() as f64;
+    State {
+        positions: state.positions.iter().map(|p| p + direction * (strain * (p.dot(&direction) - origin))).collect(),
+        velocities: vec![Vector3::zeros(); state.len()],
+    }
 }
 
 /// Advance by `steps` in a few chunks, reporting progress after each.

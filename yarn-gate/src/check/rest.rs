@@ -265,17 +265,7 @@ impl Probe {
         // place; the strained one also stretched affinely along the axis,
         // so no node starts far from where the pull will leave it.
         let start = |from: &State<f64>, grips: &[yarn_topology::Pin], strain: f64| {
-            let near = fabric.side_nodes(axis.grips().0);
-            let origin =
-                near.iter().map(|&i| from.positions[i as usize].dot(&direction)).sum::<f64>() / near.len() as f64;
-            let mut state = State {
-                positions: from
-                    .positions
-                    .iter()
-                    .map(|p| p + direction * (strain * (p.dot(&direction) - origin)))
-                    .collect(),
-                velocities: vec![V3::zeros(); from.len()],
-            };
+            let mut state = metrics::stretched(from, &fabric.side_nodes(axis.grips().0), direction, strain);
             for pin in grips {
                 state.positions[pin.node as usize] = pin.target;
             }
