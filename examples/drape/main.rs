@@ -25,6 +25,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         .collect();
     println!("pinned {} nodes of {}", pins.len(), fabric.node_count());
     let radius = fabric.yarn_radius() as f32;
+    let yarns = fabric.yarns().to_vec();
 
     // Gravity on (it is off by default); everything else as the paper's.
     let params = Params { gravity: 9.81, ..Params::default() };
@@ -37,7 +38,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     // How far the free bottom edge fell.
     let drop = start.positions.iter().zip(&end.positions).map(|(a, b)| a.y - b.y).fold(0.0, f32::max);
     println!("the fabric hangs {drop:.2} lower at its most");
-    std::fs::write(&out, tube_obj(&yarnify_examples::positions_f32(&end.positions), radius))?;
+    std::fs::write(&out, tube_obj(&yarnify_examples::positions_f32(&end.positions), &yarns, radius)?)?;
     println!("wrote {out}");
     Ok(())
 }

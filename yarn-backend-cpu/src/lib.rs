@@ -527,6 +527,178 @@ mod tests {
         }
     }
 
+    /// Yarns that cross the CPU's blocks of 512 and break inside and at
+    /// their edges: an open yarn of 300 nodes, a ring of 700 (wrapping
+    /// from block 1 back to block 0), a lone node, two nodes, a ring of 3,
+    /// an open yarn ending exactly at node 1,536 (a block edge) and one of
+    /// 400 after it; laid as waves, with contacts across yarns.
+    fn many_yarns() -> Fabric {
+        use yarn_topology::{FabricParts, Vec3, YarnSpan};
+        let lengths = [(300, false), (700, true), (1, false), (2, false), (3, true), (530, false), (400, false)];
+        let (mut positions, mut yarns) = (Vec::new(), Vec::new());
+        for (k, &(len, closed)) in lengths.iter().enumerate() {
+            let start = positions.len() as u32;
+            let y = 4.0 * k as f64;
+            for i in 0..len {
+                let t = i as f64;
+                positions.push(if closed {
+                    let angle = std::f64::consts::TAU * t / len as f64;
+                    let r = 0.1 * len as f64;
+                    Vec3::new(r * angle.cos(), y + r * angle.sin(), 0.4 * (3.0 * angle).sin())
+                } else {
+                    Vec3::new(0.5 * t, y + 0.3 * (0.2 * t).sin(), 0.2 * (0.13 * t).cos())
+                });
+            }
+            yarns.push(YarnSpan { start, end: start + len, closed });
+        }
+        assert_eq!(yarns[5].end, 1536, "a yarn must end at a block edge");
+        let contacts = vec![[299, 300], [999, 1000], [1001, 1003], [10, 1200], [1535, 1536], [700, 1800]];
+        Fabric::from_parts(FabricParts { positions, yarns, contacts, ..FabricParts::default() }).unwrap()
+    }
+
+    /// On [`many_yarns`], the f64 kernel gives `Reference<f64>`'s forces
+    /// and trajectory, as on one yarn (`serial_f64_matches_reference_f64`),
+    /// and every CPU backend the reference's forces to f32 rounding.
+    #[test]
+    fn cpu_backends_match_the_reference_on_many_yarns() {
+        let fabric = many_yarns();
+        let params = Params { gravity: 3.0, ..Params::default() };
+        // Drawn off the rest shape, so every element pulls.
+        let mut drawn = State::<f64>::at_rest(&fabric);
+        for (i, p) in drawn.positions.iter_mut().enumerate() {
+            let t = i as f64;
+            *p += V3::new(0.1 * (0.7 * t).sin(), 0.1 * (1.3 * t).cos(), 0.1 * (0.9 * t).sin());
+        }
+        let (mut fast, mut plain) = (Serial::<f64>::new(), Reference::<f64>::new());
+        fast.load(&fabric, &params).unwrap();
+        plain.load(&fabric, &params).unwrap();
+        fast.write_state(&drawn).unwrap();
+        plain.write_state(&drawn).unwrap();
+        let (f, g) = (fast.forces().unwrap(), plain.forces().unwrap());
+        let scale = g.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        let worst = f.iter().zip(&g).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        assert!(scale > 1.0 && worst < 1e-12 * scale, "forces differ by {worst:e} of {scale}");
+        fast.advance(300).unwrap();
+        plain.advance(300).unwrap();
+        let (a, b) = (fast.state().unwrap(), plain.state().unwrap());
+        let moved = b.positions.iter().zip(fabric.positions()).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+        let worst = a.positions.iter().zip(&b.positions).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+        assert!(moved > 1e-2 && worst < 1e-9, "moved {moved}, differ by {worst:e}");
+        let drawn = drawn.cast::<f32>();
+        let mut reference = Reference::<f32>::new();
+        reference.load(&fabric, &params).unwrap();
+        reference.write_state(&drawn).unwrap();
+        let want = reference.forces().unwrap();
+        let scale = want.iter().map(|v| f64::from(v.norm())).fold(0.0, f64::max);
+        let backends: [Box<dyn Backend<Real = f32>>; 3] = [
+            Box::new(Serial::<f32>::new()),
+            Box::new(Rayon::with_threads(2).unwrap()),
+            Box::new(Rayon::with_threads(3).unwrap()),
+        ];
+        for mut backend in backends {
+            backend.load(&fabric, &params).unwrap();
+            backend.write_state(&drawn).unwrap();
+            let got = backend.forces().unwrap();
+            let worst = got.iter().zip(&want).map(|(a, b)| f64::from((a - b).norm())).fold(0.0, f64::max);
+            assert!(worst <= 1e-5 * scale, "{}: forces differ by {worst:e} of {scale}", backend.name());
+        }
+    }
+
+    /// Two open yarns of 600 and 700 nodes, the second starting where the
+    /// first ends (inside block 1): a spring or joint across the break
+    /// would pull the ends together. On every CPU backend each yarn's nodes
+    /// feel exactly, bit for bit, the forces of the yarn alone, which the
+    /// block pass computes without a break; a closed ring of 700 nodes
+    /// across two blocks, at its rest shape with κ = 1, feels none.
+    #[test]
+    fn an_isolated_yarn_end_feels_only_its_own_yarn_and_a_ring_at_rest_nothing() {
+        use yarn_topology::{FabricParts, Vec3, YarnSpan};
+        let wave = |from: f64, n: usize| -> Vec<Vec3> {
+            (0..n)
+                .map(|i| Vec3::new(from + 0.5 * i as f64, (0.3 * i as f64).sin(), 0.1 * (0.2 * i as f64).cos()))
+                .collect()
+        };
+        let (a, b) = (wave(0.0, 600), wave(299.8, 700));
+        let fabric = |positions: Vec<Vec3>, yarns| {
+            Fabric::from_parts(FabricParts { positions, yarns, ..FabricParts::default() }).unwrap()
+        };
+        let two =
+            fabric(a.iter().chain(&b).copied().collect(), vec![YarnSpan::open(0..600), YarnSpan::open(600..1300)]);
+        let (alone_a, alone_b) = (fabric(a, Vec::new()), fabric(b, Vec::new()));
+        let params = Params { gravity: 9.81, ..Params::default() };
+        fn forces<B: Backend>(backend: &mut B, fabric: &Fabric, params: &Params) -> Vec<V3<B::Real>> {
+            backend.load(fabric, params).unwrap();
+            let mut state = backend.state().unwrap();
+            // By where a node is, not its index, which differs between fabrics.
+            for p in &mut state.positions {
+                let t = 3.0 * p.x.to_f64();
+                *p += V3::new(0.05 * t.cos(), 0.07, -0.03 * t.sin()).map(<B::Real as Real>::of);
+            }
+            backend.write_state(&state).unwrap();
+            backend.forces().unwrap()
+        }
+        fn check<B: Backend>(make: impl Fn() -> B, two: &Fabric, a: &Fabric, b: &Fabric, params: &Params) {
+            let name = make().name();
+            let f = forces(&mut make(), two, params);
+            assert_eq!(&f[..600], forces(&mut make(), a, params).as_slice(), "{name}: the first yarn");
+            assert_eq!(&f[600..], forces(&mut make(), b, params).as_slice(), "{name}: the second yarn");
+            assert!(f[599].norm().to_f64() > 1.0 && f[600].norm().to_f64() > 1.0, "{name}: the ends are not loaded");
+        }
+        check(Serial::<f32>::new, &two, &alone_a, &alone_b, &params);
+        check(Serial::<f64>::new, &two, &alone_a, &alone_b, &params);
+        check(Reference::<f32>::new, &two, &alone_a, &alone_b, &params);
+        check(|| Rayon::with_threads(2).unwrap(), &two, &alone_a, &alone_b, &params);
+
+        let n = 700;
+        let ring: Vec<Vec3> = (0..n)
+            .map(|i| std::f64::consts::TAU * i as f64 / n as f64)
+            .map(|t| Vec3::new(40.0 * t.cos(), 40.0 * t.sin(), 2.0 * (5.0 * t).sin()))
+            .collect();
+        let ring = fabric(ring, vec![YarnSpan::closed(0..n as u32)]);
+        let flat = Params { rest_curl: 1.0, ..Params::default() };
+        let mut backend = Serial::<f64>::new();
+        backend.load(&ring, &flat).unwrap();
+        let largest = backend.forces().unwrap().iter().map(|f| f.norm()).fold(0.0, f64::max);
+        assert!(largest < 1e-9, "the ring at rest feels {largest}");
+        backend.load(&ring, &Params::default()).unwrap();
+        let f = backend.forces().unwrap();
+        assert!(
+            f[0].norm() > 1e3 * largest && f[n - 1].norm() > 1e3 * largest,
+            "the pre-stressed ring's wrap feels only {} and {}",
+            f[0].norm(),
+            f[n - 1].norm()
+        );
+    }
+
+    /// `Rayon` is `Serial<f32>` bit for bit on [`many_yarns`] too, kicked,
+    /// with friction and without, on 1, 2 and 3 threads.
+    #[test]
+    fn rayon_matches_serial_f32_bit_for_bit_on_many_yarns() {
+        let fabric = many_yarns();
+        let run = |backend: &mut dyn Backend<Real = f32>, friction: f64| {
+            backend.load(&fabric, &Params { friction, gravity: 9.81, ..Params::default() }).unwrap();
+            let mut state = backend.state().unwrap();
+            for (i, v) in state.velocities.iter_mut().enumerate() {
+                let t = i as f32;
+                *v = V3::new((0.37 * t).sin(), (0.61 * t).cos(), (0.23 * t).sin()) * 5.0;
+            }
+            backend.write_state(&state).unwrap();
+            let forces = backend.forces().unwrap();
+            backend.advance(100).unwrap();
+            (forces, backend.state().unwrap())
+        };
+        for friction in [0.3, 0.0] {
+            let serial = run(&mut Serial::<f32>::new(), friction);
+            for threads in 1..=3 {
+                let rayon = run(&mut Rayon::with_threads(threads).unwrap(), friction);
+                let what = format!("μ = {friction}, {threads} threads");
+                assert_same(&rayon.0, &serial.0, &format!("{what}: forces"));
+                assert_same(&rayon.1.positions, &serial.1.positions, &format!("{what}: positions"));
+                assert_same(&rayon.1.velocities, &serial.1.velocities, &format!("{what}: velocities"));
+            }
+        }
+    }
+
     /// The conformance suite holds every f32 backend to `Reference<f32>`;
     /// this holds the f64 kernel, the ground truth of accuracy figures, to
     /// `Reference<f64>`, across block edges (1,152 nodes) and with friction.

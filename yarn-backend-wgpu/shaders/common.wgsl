@@ -41,6 +41,19 @@ struct Contact {
     alive: u32,
 }
 
+// Mirrors `GpuChain`: node i's place in its yarn. The rest length of the
+// segment from i to `next` and the turning angle κθ0 the joint centred on i
+// rests at (both zero where there is none), and i's neighbours along its
+// yarn, NONE at an open yarn's ends (a closed yarn's wrap around).
+struct Chain {
+    rest_length: f32,
+    rest_turn: f32,
+    prev: u32,
+    next: u32,
+}
+
+const NONE: u32 = 0xffffffffu;
+
 // Mirrors `GpuPin`.
 struct Pin {
     goal: vec3<f32>,

@@ -8,7 +8,7 @@
 @group(0) @binding(1) var<storage, read> x: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> v: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> out: array<vec4<f32>>;
-@group(0) @binding(4) var<storage, read> chain: array<vec2<f32>>;
+@group(0) @binding(4) var<storage, read> chain: array<Chain>;
 @group(0) @binding(5) var<storage, read> contacts: array<Contact>;
 @group(0) @binding(6) var<storage, read_write> acc: array<atomic<i32>>;
 @group(0) @binding(7) var<storage, read_write> status: array<atomic<u32>>;
@@ -31,22 +31,26 @@ fn add(node: u32, f: vec3<f32>) {
     }
 }
 
-// Thread t handles segment t, joint t and contact t, where they exist.
+// Thread t handles the segment leaving node t, the joint centred on node t
+// and contact t, where they exist; segments and joints follow each yarn
+// through `chain`, wrapping around closed ones.
 @compute @workgroup_size(WORKGROUP)
 fn scatter(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
            @builtin(num_workgroups) groups: vec3<u32>) {
     let t = thread_index(group, local, groups);
-    if t + 1u < p.nodes {
-        let d0 = x[t + 1u].xyz - x[t].xyz;
-        let f = spring_force(d0, chain[t].x, p.stretch);
-        add(t, f);
-        add(t + 1u, -f);
-        if t + 2u < p.nodes {
-            let joint = joint_forces(segment_of(d0), segment_of(x[t + 2u].xyz - x[t + 1u].xyz), chain[t].y, p.bend,
-                                     p.min_sin);
-            add(t, joint.first);
-            add(t + 1u, -(joint.first + joint.last));
-            add(t + 2u, joint.last);
+    if t < p.nodes {
+        let here = chain[t];
+        if here.next != NONE {
+            let f = spring_force(x[here.next].xyz - x[t].xyz, here.rest_length, p.stretch);
+            add(t, f);
+            add(here.next, -f);
+        }
+        if here.prev != NONE && here.next != NONE {
+            let joint = joint_forces(segment_of(x[t].xyz - x[here.prev].xyz), segment_of(x[here.next].xyz - x[t].xyz),
+                                     here.rest_turn, p.bend, p.min_sin);
+            add(here.prev, joint.first);
+            add(t, -(joint.first + joint.last));
+            add(here.next, joint.last);
         }
     }
     if t < p.contacts {

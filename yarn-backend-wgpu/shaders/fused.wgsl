@@ -10,7 +10,7 @@
 @group(0) @binding(2) var<storage, read> v: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> x_next: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> v_next: array<vec4<f32>>;
-@group(0) @binding(5) var<storage, read> chain: array<vec2<f32>>;
+@group(0) @binding(5) var<storage, read> chain: array<Chain>;
 @group(0) @binding(6) var<storage, read> start: array<u32>;
 @group(0) @binding(7) var<storage, read> incident: array<Contact>;
 

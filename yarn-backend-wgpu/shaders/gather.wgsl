@@ -7,9 +7,8 @@
 @group(0) @binding(1) var<storage, read> x: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> v: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> out: array<vec4<f32>>;
-// Per node i: the rest length of segment i and κθ0 of joint i (zero past
-// the ends).
-@group(0) @binding(4) var<storage, read> chain: array<vec2<f32>>;
+// Per node: its segment's rest length, its joint's κθ0 and its neighbours.
+@group(0) @binding(4) var<storage, read> chain: array<Chain>;
 @group(0) @binding(5) var<storage, read> start: array<u32>;
 @group(0) @binding(6) var<storage, read> incident: array<Contact>;
 

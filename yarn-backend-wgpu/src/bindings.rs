@@ -11,7 +11,7 @@ use yarn_model::{Model, V3};
 
 use crate::Mode;
 use crate::gpu::{Gpu, Pipelines};
-use crate::layout::{GpuContact, GpuReseat};
+use crate::layout::{GpuChain, GpuContact, GpuReseat};
 
 /// Which of each double-buffered pair holds the current state:
 /// `x[parity.x]` and `v[parity.v]`.
@@ -42,7 +42,7 @@ pub(crate) struct Buffers {
     pub(crate) x: [wgpu::Buffer; 2],
     pub(crate) v: [wgpu::Buffer; 2],
     pub(crate) forces: wgpu::Buffer,
-    /// Per node i: the rest length of segment i and κθ0 of joint i.
+    /// Per node: its [`GpuChain`] record.
     pub(crate) chain: wgpu::Buffer,
     pub(crate) contacts: wgpu::Buffer,
     /// Each node's contacts, copied in contact order:
@@ -252,16 +252,18 @@ pub(crate) fn vec4s(v: &[V3<f32>]) -> Vec<[f32; 4]> {
     v.iter().map(|p| [p.x, p.y, p.z, 0.0]).collect()
 }
 
-/// Per node i: the rest length of segment i and κθ0 of joint i, zero past
-/// the yarn's ends.
-pub(crate) fn chain(model: &Model<f32>) -> Vec<[f32; 2]> {
+/// Per node i: the rest length of the segment leaving i, κθ0 of the joint
+/// centred on i (zero where there is none) and i's neighbours along its
+/// yarn.
+pub(crate) fn chain(model: &Model<f32>) -> Vec<GpuChain> {
     let kappa = model.coeffs().rest_curl;
-    (0..model.node_count())
-        .map(|i| {
-            [
-                model.spring_rest().get(i).copied().unwrap_or(0.0),
-                model.rest_angle().get(i).map_or(0.0, |&theta0| kappa * theta0),
-            ]
+    model
+        .links()
+        .iter()
+        .zip(model.segment_rest().iter().zip(model.joint_rest()))
+        .map(|(link, (&rest_length, &theta0))| {
+            let [prev, next] = link.raw();
+            GpuChain { rest_length, rest_turn: kappa * theta0, prev, next }
         })
         .collect()
 }

@@ -15,7 +15,7 @@ use crate::bindings::{
     Buffers, Groups, Parity, chain, forces_kernel, gpu_contacts, incidence, reseat_group, storage, vec4s,
 };
 use crate::gpu::{Gpu, read_mapped};
-use crate::layout::{DIVERGED, FRICTION_ON, FUSED_FMA, GpuParams, GpuPin, OVERFLOWED};
+use crate::layout::{DIVERGED, FRICTION_ON, FUSED_FMA, GpuChain, GpuParams, GpuPin, OVERFLOWED};
 use crate::record::Dispatch;
 use crate::timing::Timestamps;
 use crate::{Checkpoint, FIXED_POINT_SCALE, Mode, WORKGROUP};
@@ -50,6 +50,7 @@ pub(crate) struct GpuFabric {
 pub(crate) fn check_fits(gpu: &Gpu, model: &Model<f32>) -> Result<(), BackendError> {
     let (nodes, contacts) = (model.node_count(), model.contacts().len());
     fits_binding(gpu, "the node buffer (bytes)", nodes as u64 * 16)?;
+    fits_binding(gpu, "the per-node chain records (bytes)", (nodes * size_of::<GpuChain>()) as u64)?;
     fits_binding(gpu, "the per-node contact records (bytes)", contacts as u64 * 32)?;
     fits_dispatch(gpu, nodes.max(contacts))
 }

@@ -67,6 +67,18 @@ pub(crate) struct GpuReseat {
     pub(crate) knit: f32,
 }
 
+/// Mirrors `Chain`: a node's segment rest length and the turning angle
+/// κθ0 its joint rests at (zero where it has none), and its neighbours
+/// along its yarn ([`yarn_topology::Link::NONE`] for a missing one).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+pub(crate) struct GpuChain {
+    pub(crate) rest_length: f32,
+    pub(crate) rest_turn: f32,
+    pub(crate) prev: u32,
+    pub(crate) next: u32,
+}
+
 /// Mirrors `Pin`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
@@ -148,6 +160,23 @@ mod tests {
         );
         assert_eq!(wgsl_layout("Pin").0 as usize, size_of::<GpuPin>());
         assert_eq!(offsets("Pin"), [offset_of!(GpuPin, goal), offset_of!(GpuPin, node)].map(|o| o as u32));
+    }
+
+    #[test]
+    fn chain_matches_wgsl() {
+        let (size, members) = wgsl_layout_in(&shaders::GATHER, "Chain");
+        assert_eq!(size as usize, size_of::<GpuChain>());
+        let rust = [
+            offset_of!(GpuChain, rest_length),
+            offset_of!(GpuChain, rest_turn),
+            offset_of!(GpuChain, prev),
+            offset_of!(GpuChain, next),
+        ];
+        assert_eq!(members.into_iter().map(|(_, o)| o as usize).collect::<Vec<_>>(), rust);
+        assert!(
+            shaders::COMMON.contains(&format!("const NONE: u32 = {:#x}u;", yarn_topology::Link::NONE)),
+            "NONE differs"
+        );
     }
 
     #[test]

@@ -105,7 +105,7 @@ impl Certificate {
         step::accumulate_forces(model, &state.positions, &mut forces);
         zero_pinned(&mut forces, &free);
         let max_force = forces.iter().map(|f| f.norm()).fold(0.0, f64::max);
-        let scale = 0.5 * model.coeffs().bend * model.rest_angle().iter().map(|t| t * t).sum::<f64>();
+        let scale = 0.5 * model.coeffs().bend * model.joints().map(|(_, t)| t * t).sum::<f64>();
         let newton = newton_step(model, &state.positions, &forces, &free);
         let displacement = (newton.step.iter().map(|d| d.norm()).fold(0.0, f64::max) + newton.unresolved) / r;
         let energy_left = 0.5 * dot(&forces, &newton.step) / scale.max(f64::MIN_POSITIVE);

@@ -6,11 +6,15 @@
 //! test file instantiates it per backend with one macro line. A scene is a
 //! random fabric (generated or built from user parts) with a perturbed
 //! state, random pins, dead contacts and parameters; the `proptest`
-//! strategies live in [`strategy`].
+//! strategies live in [`strategy`]. Fabrics of several yarns, open and
+//! closed, get scenes of their own ([`strategy::yarns_scene`]), held to the
+//! same tolerances, and two fixed checks: a yarn's nodes feel exactly what
+//! the yarn alone gives them ([`yarns_feel_only_themselves`]), and a closed
+//! ring at its rest shape is at rest ([`ring_at_rest_is_still`]).
 
 use yarn_backend_cpu::{Reference, Serial};
 use yarn_model::{Backend, BackendError, Params, State, V3, step, widen};
-use yarn_topology::{Fabric, Pin};
+use yarn_topology::{Fabric, FabricParts, Pin, Vec3, YarnSpan};
 
 /// Force agreement after one accumulation, relative to the largest
 /// reference force: both sides evaluate the same f32 formulas, and only the
@@ -304,6 +308,110 @@ pub fn assert_bit_for_bit<A: Backend<Real = f32>, B: Backend<Real = f32>>(mut a:
     );
 }
 
+/// The fabric of [`yarns_feel_only_themselves`] and its yarns alone: two
+/// open yarns, 9 and 12 nodes, the second starting 0.5 from where the
+/// first ends (a spring across the break would pull the ends together),
+/// and a closed ring of 7 nodes; then each as a fabric of its own.
+fn three_yarns() -> (Fabric, Vec<Fabric>) {
+    let wave = |from: f64, n: usize| -> Vec<Vec3> {
+        (0..n).map(|i| Vec3::new(from + i as f64, (0.3 * i as f64).sin(), 0.1 * i as f64)).collect()
+    };
+    let ring: Vec<Vec3> = (0..7)
+        .map(|i| std::f64::consts::TAU * f64::from(i) / 7.0)
+        .map(|t| Vec3::new(1.2 * t.cos(), 4.0 + 1.2 * t.sin(), 0.3 * (2.0 * t).sin()))
+        .collect();
+    let parts = [(wave(0.0, 9), false), (wave(8.5, 12), false), (ring, true)];
+    let build = |positions: Vec<Vec3>, yarns| {
+        Fabric::from_parts(FabricParts { positions, yarns, ..FabricParts::default() }).expect("valid yarns")
+    };
+    let mut all = Vec::new();
+    let mut spans = Vec::new();
+    let mut alone = Vec::new();
+    for (positions, closed) in parts {
+        let (start, end) = (all.len() as u32, (all.len() + positions.len()) as u32);
+        spans.push(YarnSpan { start, end, closed });
+        alone.push(build(positions.clone(), vec![YarnSpan { start: 0, end: end - start, closed }]));
+        all.extend(positions);
+    }
+    (build(all, spans), alone)
+}
+
+/// Where a node is, in a scene's state, as a function of its position
+/// only, so that a yarn sits the same in a fabric of several yarns and on
+/// its own: every node drawn off its rest, every element loaded.
+fn drawn_off_rest(fabric: &Fabric) -> State<f32> {
+    let mut state = State::<f64>::at_rest(fabric);
+    for p in &mut state.positions {
+        *p += V3::new(0.05 * (3.0 * p.x).cos(), 0.07, -0.03 * (2.0 * p.y).sin());
+    }
+    state.cast()
+}
+
+/// No spring or joint joins two yarns: on a fabric of two open yarns, the
+/// second starting 0.5 from where the first ends, and a closed ring, each
+/// yarn's nodes feel exactly, bit for bit, the force the yarn alone gives
+/// them, with gravity on. Returns the force on the first yarn's last node,
+/// which a spring across the break would have changed.
+///
+/// # Panics
+/// When a yarn's nodes feel anything else.
+pub fn yarns_feel_only_themselves<B: Backend<Real = f32>>(make: impl Fn() -> B) -> V3<f32> {
+    let (fabric, alone) = three_yarns();
+    let params = Params { gravity: 9.81, ..Params::default() };
+    let forces = |fabric: &Fabric| {
+        let mut backend = make();
+        backend.load(fabric, &params).expect("load");
+        backend.write_state(&drawn_off_rest(fabric)).expect("write");
+        backend.forces().expect("forces")
+    };
+    let all = forces(&fabric);
+    let name = make().name();
+    for (k, (yarn, alone)) in fabric.yarns().iter().zip(&alone).enumerate() {
+        let own = forces(alone);
+        assert_eq!(&all[yarn.nodes()], own.as_slice(), "{name}: yarn {k} feels more than itself");
+    }
+    let end = all[fabric.yarns()[0].end as usize - 1];
+    assert!(widen(&end).norm() > 1.0, "{name}: the yarn's end must be loaded for this to mean anything");
+    end
+}
+
+/// A closed ring of 32 nodes at its rest shape with κ = 1: every force is
+/// below f32 rounding (10⁻⁵ of k_s times the segment length) after one
+/// accumulation, and after [`TRAJECTORY_STEPS`] substeps no node has moved
+/// 10⁻⁴ r. With κ = 0.55 the ring is pre-stressed, its wrap-around joints
+/// too, a hundred times past that bound. Returns the largest force at rest.
+///
+/// # Panics
+/// When the ring at rest moves, or the pre-stressed one does not feel it.
+pub fn ring_at_rest_is_still<B: Backend<Real = f32>>(make: impl Fn() -> B) -> f64 {
+    let n = 32;
+    let positions: Vec<Vec3> = (0..n)
+        .map(|i| std::f64::consts::TAU * f64::from(i) / f64::from(n))
+        .map(|t| Vec3::new(5.0 * t.cos(), 5.0 * t.sin(), 0.4 * (3.0 * t).sin()))
+        .collect();
+    let yarns = vec![YarnSpan::closed(0..n)];
+    let ring = Fabric::from_parts(FabricParts { positions, yarns, ..FabricParts::default() }).expect("a valid ring");
+    let segment = ring.springs().iter().map(|s| s.rest_length).fold(0.0, f64::max);
+    let flat = Params { rest_curl: 1.0, friction: 0.0, ..Params::default() };
+    let bound = FORCE_F32 * flat.stretch_stiffness * segment;
+    let mut backend = make();
+    let name = backend.name();
+    backend.load(&ring, &flat).expect("load");
+    let largest = max_norm(&backend.forces().expect("forces"));
+    assert!(largest <= bound, "{name}: the ring at rest feels {largest:e} (f32 rounding is {bound:e})");
+    backend.advance(TRAJECTORY_STEPS).expect("advance");
+    let start: Vec<V3<f32>> = State::<f32>::at_rest(&ring).positions;
+    let moved = max_diff(&backend.state().expect("state").positions, &start) / ring.yarn_radius();
+    assert!(moved <= 1e-4, "{name}: the ring at rest moved {moved:e} r");
+    backend.load(&ring, &Params { friction: 0.0, ..Params::default() }).expect("load");
+    let stressed = backend.forces().expect("forces");
+    for node in [0, n as usize - 1] {
+        let f = widen(&stressed[node]).norm();
+        assert!(f > 100.0 * bound, "{name}: node {node} of the pre-stressed ring feels only {f:e}");
+    }
+    largest
+}
+
 /// Substeps into the trajectory check at which released contacts revive.
 pub const REVIVE_AT: u64 = TRAJECTORY_STEPS / 2;
 
@@ -335,7 +443,7 @@ fn nudged_reference_end(scene: &Scene, factor: f32) -> State<f32> {
 pub mod strategy {
     use proptest::prelude::*;
     use yarn_model::{Params, State, V3};
-    use yarn_topology::{Chart, Fabric, FabricParts, Geometry, Pin, Vec3};
+    use yarn_topology::{Chart, Fabric, FabricParts, Geometry, Pin, Vec3, YarnSpan};
 
     use super::Scene;
 
@@ -417,10 +525,128 @@ pub mod strategy {
         prop_oneof![3 => chart, 1 => strip, 1 => parts]
     }
 
+    /// Two open yarns crossing at right angles, one 0.9 in front of the
+    /// other, with five contacts where they cross: the middle node of each
+    /// against the other's middle node and its two neighbours.
+    pub fn crossed_yarns() -> Fabric {
+        let along = |i: usize| i as f64 - 7.0;
+        let positions = (0..15)
+            .map(|i| Vec3::new(along(i), 0.2 * (0.5 * along(i)).sin(), 0.9))
+            .chain((0..15).map(|i| Vec3::new(0.3 * (0.4 * along(i)).cos(), along(i), -0.9)))
+            .collect();
+        Fabric::from_parts(FabricParts {
+            positions,
+            yarns: vec![YarnSpan::open(0..15), YarnSpan::open(15..30)],
+            contacts: vec![[7, 22], [6, 22], [8, 22], [7, 21], [7, 23]],
+            ..FabricParts::default()
+        })
+        .expect("two crossed yarns are valid")
+    }
+
+    /// A closed ring of 16 nodes of radius 3, wavy out of its plane, with
+    /// two contacts across it.
+    pub fn ring() -> Fabric {
+        let positions = (0..16)
+            .map(|i| std::f64::consts::TAU * f64::from(i) / 16.0)
+            .map(|t| Vec3::new(3.0 * t.cos(), 3.0 * t.sin(), 0.5 * (2.0 * t).sin()))
+            .collect();
+        Fabric::from_parts(FabricParts {
+            positions,
+            yarns: vec![YarnSpan::closed(0..16)],
+            contacts: vec![[0, 8], [4, 12]],
+            ..FabricParts::default()
+        })
+        .expect("a ring is valid")
+    }
+
+    /// The positions of one yarn of `len` nodes from `origin`: a random
+    /// walk of steps 0.4 to 1.5 long when open, a jittered circle of about
+    /// unit segments when closed. `jitter` holds a step per node, each
+    /// coordinate in −1..1.
+    fn yarn_positions(origin: Vec3, len: usize, closed: bool, jitter: &[(f64, f64, f64)]) -> Vec<Vec3> {
+        let mut at = origin;
+        (0..len)
+            .map(|i| {
+                let (dx, dy, dz) = jitter[i % jitter.len()];
+                if closed {
+                    let t = std::f64::consts::TAU * i as f64 / len as f64;
+                    let r = len as f64 / std::f64::consts::TAU;
+                    origin + Vec3::new(r * t.cos(), r * t.sin(), 0.0) + Vec3::new(dx, dy, dz) * 0.15
+                } else {
+                    let here = at;
+                    at += Vec3::new(0.4 + 0.55 * (dx + 1.0), dy, dz);
+                    here
+                }
+            })
+            .collect()
+    }
+
+    /// One random yarn: its length, whether it is closed, its origin and
+    /// a jitter per node (each coordinate in −1..1).
+    type YarnDraw = (usize, bool, (f64, f64, f64), Vec<(f64, f64, f64)>);
+
+    /// Several yarns from `(len, closed, origin, jitter)` each, one after
+    /// another (closed only from 3 nodes), with `pairs` as contacts between
+    /// any of their nodes (self-contacts dropped).
+    fn yarns_of(yarns: Vec<YarnDraw>, pairs: &[(u32, u32)]) -> Fabric {
+        let (mut positions, mut spans) = (Vec::new(), Vec::new());
+        for (len, closed, (x, y, z), jitter) in yarns {
+            let closed = closed && len >= 3;
+            let start = positions.len() as u32;
+            positions.extend(yarn_positions(Vec3::new(x, y, z), len, closed, &jitter));
+            spans.push(YarnSpan { start, end: positions.len() as u32, closed });
+        }
+        let n = positions.len() as u32;
+        let contacts = pairs.iter().map(|&(a, b)| [a % n, b % n]).filter(|[a, b]| a != b).collect();
+        Fabric::from_parts(FabricParts { positions, yarns: spans, contacts, ..FabricParts::default() })
+            .expect("open steps of at least 0.4 and rings of unit segments never repeat a node")
+    }
+
+    /// The share of [`yarns_fabric`]'s fabrics with more nodes than one
+    /// CPU block (512), so that yarn breaks and wraps cross block edges.
+    pub const YARNS_BLOCK_CROSSING_SHARE: f64 = 0.2;
+
+    /// A fabric of several yarns: [`crossed_yarns`], [`ring`], 1 to 5
+    /// random yarns of 1 to 12 nodes each, open or closed, with random
+    /// contacts between any of their nodes, or 2 to 4 yarns of 150 to 450
+    /// nodes across the CPU's blocks ([`YARNS_BLOCK_CROSSING_SHARE`]).
+    pub fn yarns_fabric() -> impl Strategy<Value = Fabric> {
+        let yarn = |lengths: std::ops::Range<usize>| {
+            (
+                lengths,
+                any::<bool>(),
+                (-6.0..6.0f64, -6.0..6.0f64, -1.0..1.0f64),
+                proptest::collection::vec((-1.0..1.0f64, -1.0..1.0f64, -1.0..1.0f64), 16),
+            )
+        };
+        let small = (
+            proptest::collection::vec(yarn(1..13), 1..6),
+            proptest::collection::vec((any::<u32>(), any::<u32>()), 0..12),
+        )
+            .prop_map(|(yarns, pairs)| yarns_of(yarns, &pairs));
+        let long = (
+            proptest::collection::vec(yarn(150..450), 2..5),
+            proptest::collection::vec((any::<u32>(), any::<u32>()), 0..40),
+        )
+            .prop_map(|(yarns, pairs)| yarns_of(yarns, &pairs));
+        prop_oneof![1 => Just(crossed_yarns()), 1 => Just(ring()), 6 => small, 2 => long]
+    }
+
     /// A full scene: fabric, parameters, a perturbed moving state, a few
     /// pins and some dead contacts.
     pub fn scene() -> impl Strategy<Value = Scene> {
-        (fabric(), params(), any::<u64>(), 0.0..0.5f64, 0.0..5.0f64, 0.0..0.1f64, 0.0..0.4f64).prop_map(
+        scene_of(fabric())
+    }
+
+    /// A scene as [`scene`] makes them, on a fabric of several yarns, open
+    /// and closed ([`yarns_fabric`]).
+    pub fn yarns_scene() -> impl Strategy<Value = Scene> {
+        scene_of(yarns_fabric())
+    }
+
+    /// A scene on a fabric drawn from `fabric`.
+    fn scene_of(fabric: impl Strategy<Value = Fabric>) -> impl Strategy<Value = Scene> {
+        (fabric, params(), any::<u64>(), 0.0..0.5f64, 0.0..5.0f64, 0.0..0.1f64, 0.0..0.4f64).prop_map(
             |(fabric, params, seed, jiggle, speed, pin_fraction, dead_fraction)| {
                 let mut rng = seed | 1;
                 let mut next = move || {
@@ -495,7 +721,7 @@ mod tests {
     use proptest::strategy::{Strategy, ValueTree};
     use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 
-    use super::strategy::{BLOCK_CROSSING_SHARE, SLEEP_SHARE, scene};
+    use super::strategy::{BLOCK_CROSSING_SHARE, SLEEP_SHARE, YARNS_BLOCK_CROSSING_SHARE, scene, yarns_scene};
 
     /// The scenes reach what the suite says they do: sleeping parameters
     /// and fabrics across block edges each in their stated share (within
@@ -517,5 +743,29 @@ mod tests {
         assert!(share(&|s| s.params.sleep_speed > 0.0 && s.fabric.node_count() > 512) > 0.02);
         assert!(share(&|s| !s.pins.is_empty()) > 0.2);
         assert!(share(&|s| s.alive.iter().any(|&a| !a)) > 0.2);
+    }
+
+    /// The scenes of several yarns reach what they say: most have two or
+    /// more yarns and a closed one, some a yarn of one node, the stated
+    /// share cross a CPU block edge (within 0.05 over 1,000), and contacts
+    /// join two yarns in many.
+    #[test]
+    fn yarn_scenes_hold_several_yarns_open_and_closed() {
+        let mut runner =
+            TestRunner::new_with_rng(Config::default(), TestRng::from_seed(RngAlgorithm::ChaCha, &[5; 32]));
+        let scenes: Vec<_> = (0..1000).map(|_| yarns_scene().new_tree(&mut runner).unwrap().current()).collect();
+        let share = |f: &dyn Fn(&super::Scene) -> bool| scenes.iter().filter(|s| f(s)).count() as f64 / 1000.0;
+        let several = share(&|s| s.fabric.yarns().len() > 1);
+        let closed = share(&|s| s.fabric.yarns().iter().any(|y| y.closed));
+        let lone = share(&|s| s.fabric.yarns().iter().any(|y| y.len() == 1));
+        let crossing = share(&|s| s.fabric.node_count() > 512);
+        let yarn_of = |s: &super::Scene, node: u32| s.fabric.yarns().iter().position(|y| y.contains(node));
+        let joining = share(&|s| s.fabric.contacts().iter().any(|c| yarn_of(s, c.a) != yarn_of(s, c.b)));
+        println!(
+            "several yarns {several}, a closed one {closed}, a lone node {lone}, across blocks {crossing} \
+             (stated {YARNS_BLOCK_CROSSING_SHARE}), contacts between yarns {joining}"
+        );
+        assert!(several > 0.6 && closed > 0.5 && lone > 0.05 && joining > 0.5);
+        assert!((crossing - YARNS_BLOCK_CROSSING_SHARE).abs() < 0.05, "{crossing}");
     }
 }

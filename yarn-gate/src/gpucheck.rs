@@ -168,8 +168,10 @@ pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCh
         });
     }
     let view = View { width: 640, height: 480, ..View::default() };
-    let render_coverage =
-        Renderer::new(gpu).render(&drawn, r as f32, &view).map_err(|e| GateError::Render(e.to_string()))?.coverage();
+    let render_coverage = Renderer::new(gpu)
+        .render(&drawn, fabric.yarns(), r as f32, &view)
+        .map_err(|e| GateError::Render(e.to_string()))?
+        .coverage();
     let pass = modes.iter().all(|m| m.pass) && render_coverage > MIN_RENDER_COVERAGE;
     Ok(GpuCheckReport {
         adapter: gpu.adapter(),

@@ -79,13 +79,14 @@ impl RenderArgs {
             zoom: 1.0,
         };
         let frame = Renderer::new(&*Gpu::new()?)
-            .render(&positions, radius, &view)
+            .render(&positions, fabric.yarns(), radius, &view)
             .and_then(|frame| frame.save_png(&self.out).map(|()| frame))
             .map_err(|e| GateError::Render(e.to_string()))?;
         let mut stdout =
             format!("wrote {} ({:.1} % of the frame is yarn)\n", self.out.display(), 100.0 * frame.coverage());
         if let Some(path) = &self.obj {
-            std::fs::write(path, tube_obj(&positions, radius)).map_err(|e| GateError::io(path, e))?;
+            let obj = tube_obj(&positions, fabric.yarns(), radius).map_err(|e| GateError::Render(e.to_string()))?;
+            std::fs::write(path, obj).map_err(|e| GateError::io(path, e))?;
             stdout += &format!("wrote {}\n", path.display());
         }
         Ok(Outcome::text(stdout))

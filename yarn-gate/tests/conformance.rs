@@ -1,5 +1,6 @@
 //! Every backend against `Reference<f32>`, the substep element by element,
-//! on random scenes. A new backend joins with one `conformance!` line.
+//! on random scenes, of one yarn and of several yarns open and closed. A
+//! new backend joins with one `conformance!` line.
 
 use std::sync::Arc;
 
@@ -40,6 +41,42 @@ macro_rules! conformance {
                         let compared = conformance::trajectory_matches_reference(make, &scene, &$tolerance);
                         prop_assume!(compared.is_some(), "too chaotic to compare with the reference");
                     }
+                }
+
+                #[test]
+                fn forces_on_several_yarns(scene in strategy::yarns_scene()) {
+                    if let Some(make) = $make {
+                        conformance::forces_match_reference(make, &scene, &$tolerance);
+                    }
+                }
+
+                #[test]
+                fn one_substep_on_several_yarns(scene in strategy::yarns_scene()) {
+                    if let Some(make) = $make {
+                        conformance::substep_matches_reference(make, &scene, &$tolerance);
+                    }
+                }
+
+                #[test]
+                fn trajectory_and_energy_on_several_yarns(scene in strategy::yarns_scene()) {
+                    if let Some(make) = $make {
+                        let compared = conformance::trajectory_matches_reference(make, &scene, &$tolerance);
+                        prop_assume!(compared.is_some(), "too chaotic to compare with the reference");
+                    }
+                }
+            }
+
+            #[test]
+            fn yarns_feel_only_themselves() {
+                if let Some(make) = $make {
+                    conformance::yarns_feel_only_themselves(make);
+                }
+            }
+
+            #[test]
+            fn a_ring_at_rest_is_still() {
+                if let Some(make) = $make {
+                    conformance::ring_at_rest_is_still(make);
                 }
             }
         }
@@ -93,6 +130,38 @@ proptest! {
             conformance::assert_bit_for_bit(backend, Serial::<f32>::new(), &scene);
         }
     }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// As above, on fabrics of several yarns, open and closed: the gather's
+    /// links and `Serial<f32>`'s recomputed breaks sum the same elements in
+    /// the same order.
+    #[test]
+    fn wgpu_gather_is_serial_f32_bit_for_bit_on_several_yarns(scene in strategy::yarns_scene()) {
+        let Some(gpu) = gpu() else { return Ok(()) };
+        let scene = conformance::Scene { params: Params { sleep_speed: 0.0, ..scene.params }, ..scene };
+        for fuse_below in [yarn_backend_wgpu::FUSE_BELOW, 0] {
+            let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
+            backend.set_fuse_below(fuse_below);
+            conformance::assert_bit_for_bit(backend, Serial::<f32>::new(), &scene);
+        }
+    }
+
+    /// `Rayon` is `Serial<f32>` bit for bit on several yarns too, sleeping
+    /// included: the same passes over the same blocks.
+    #[test]
+    fn rayon_is_serial_f32_bit_for_bit_on_several_yarns(scene in strategy::yarns_scene()) {
+        conformance::assert_bit_for_bit(Rayon::with_threads(3).unwrap(), Serial::<f32>::new(), &scene);
+    }
+}
+
+/// The reference itself on the fixed fabrics of several yarns.
+#[test]
+fn the_reference_feels_only_each_yarn_and_holds_a_ring_at_rest() {
+    conformance::yarns_feel_only_themselves(yarn_backend_cpu::Reference::<f32>::new);
+    conformance::ring_at_rest_is_still(yarn_backend_cpu::Reference::<f32>::new);
 }
 
 /// Serial f32 against Serial f64 over the gate's 12,000-substep relaxation:

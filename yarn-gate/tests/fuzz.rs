@@ -18,7 +18,7 @@ use proptest::test_runner::{Config, TestRunner};
 use yarn_backend_cpu::{Rayon, Reference, Serial};
 use yarn_backend_wgpu::{Gpu, Mode, Wgpu};
 use yarn_model::{Backend, Model, Params, State, V3};
-use yarn_topology::{Boundary, Chart, Fabric, FabricParts, Geometry, Pin, Vec3};
+use yarn_topology::{Boundary, Chart, Fabric, FabricParts, Geometry, Pin, Vec3, YarnSpan};
 
 /// A number from the awkward corners and the ordinary middle.
 fn awkward() -> impl Strategy<Value = f64> {
@@ -91,6 +91,9 @@ enum Flaw {
     Radius(f64),
     /// An awkward course direction.
     Course(Vec3),
+    /// Yarn spans spoilt at yarn k: shifted by `shift` nodes (a gap or an
+    /// overlap, or past the end), or closed (too short when under 3).
+    Yarns(usize, i64),
 }
 
 fn flaw() -> impl Strategy<Value = Flaw> {
@@ -106,13 +109,35 @@ fn flaw() -> impl Strategy<Value = Flaw> {
         (0usize..16).prop_map(Flaw::Boundary),
         awkward().prop_map(Flaw::Radius),
         point().prop_map(Flaw::Course),
+        (any::<usize>(), prop_oneof![Just(0i64), Just(-1), Just(1), Just(i64::from(u32::MAX))])
+            .prop_map(|(k, shift)| Flaw::Yarns(k, shift)),
     ]
 }
 
-/// Valid user parts: 1 to 13 nodes at ordinary points, contacts between
-/// distinct nodes, pins on nodes with ordinary targets, a boundary list of
-/// the right length or none, and an ordinary radius and direction or the
-/// defaults.
+/// Yarn spans over `n` nodes from `cuts` (each a length and whether the
+/// yarn is closed, closed only from 3 nodes), the last yarn taking what is
+/// left; none for no cuts, which is one open yarn.
+fn yarns_from(n: usize, cuts: &[(usize, bool)]) -> Vec<YarnSpan> {
+    let mut yarns = Vec::new();
+    let mut start = 0;
+    for (k, &(len, closed)) in cuts.iter().enumerate() {
+        let len = if k + 1 == cuts.len() { n - start } else { len.min(n - start) };
+        if len == 0 {
+            break;
+        }
+        yarns.push(YarnSpan { start: start as u32, end: (start + len) as u32, closed: closed && len >= 3 });
+        start += len;
+    }
+    if start < n {
+        yarns.push(YarnSpan::open(start as u32..n as u32));
+    }
+    if cuts.is_empty() { Vec::new() } else { yarns }
+}
+
+/// Valid user parts: 1 to 13 nodes at ordinary points, in one open yarn or
+/// several open and closed ones, contacts between distinct nodes, pins on
+/// nodes with ordinary targets, a boundary list of the right length or
+/// none, and an ordinary radius and direction or the defaults.
 fn valid_parts() -> impl Strategy<Value = FabricParts> {
     (1usize..14).prop_flat_map(|n| {
         let node = move || 0..n as u32;
@@ -123,8 +148,10 @@ fn valid_parts() -> impl Strategy<Value = FabricParts> {
             any::<bool>(),
             prop_oneof![Just(None), (0.1..1.0f64).prop_map(Some)],
             prop_oneof![Just(None), point_ordinary().prop_map(Some)],
+            prop::collection::vec((1usize..6, any::<bool>()), 0..4),
         )
-            .prop_map(move |(positions, contacts, pins, boundary, yarn_radius, course)| FabricParts {
+            .prop_map(move |(positions, contacts, pins, boundary, yarn_radius, course, cuts)| FabricParts {
+                yarns: yarns_from(n, &cuts),
                 contacts: contacts.into_iter().map(|(a, step)| [a, (a + step) % n as u32]).collect(),
                 pins: pins.into_iter().map(|(node, target)| Pin { node, target }).collect(),
                 boundary: if boundary { vec![Boundary::INTERIOR; n] } else { Vec::new() },
@@ -155,6 +182,18 @@ fn parts() -> impl Strategy<Value = FabricParts> {
             Some(Flaw::Boundary(len)) => parts.boundary = vec![Boundary::INTERIOR; len],
             Some(Flaw::Radius(r)) => parts.yarn_radius = Some(r),
             Some(Flaw::Course(c)) => parts.course = Some(c),
+            Some(Flaw::Yarns(k, shift)) => {
+                if parts.yarns.is_empty() {
+                    parts.yarns.push(YarnSpan::open(0..n as u32));
+                }
+                let count = parts.yarns.len();
+                let yarn = &mut parts.yarns[k % count];
+                if shift == 0 {
+                    yarn.closed = true;
+                } else {
+                    yarn.end = (i64::from(yarn.end) + shift).clamp(0, i64::from(u32::MAX)) as u32;
+                }
+            }
         }
         parts
     })

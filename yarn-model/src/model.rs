@@ -3,7 +3,7 @@
 //! liveness. Backends build one on load and keep it current; the state
 //! (positions and velocities) is kept apart in [`State`].
 
-use yarn_topology::{Fabric, Pin, available_memory, check_memory};
+use yarn_topology::{Fabric, Link, Pin, YarnSpan, available_memory, check_memory};
 
 use crate::real::{cast, widen};
 use crate::{BackendError, Params, Real, V3};
@@ -74,6 +74,10 @@ const SCALARS_PER_NODE: u64 = 32;
 /// Scalars a backend holds per contact, besides its two node indices.
 const SCALARS_PER_CONTACT: u64 = 12;
 
+/// Index bytes a backend holds per node besides its scalars: the node's
+/// [`Link`], on the host and again on a device.
+const INDEX_BYTES_PER_NODE: u64 = 2 * size_of::<Link>() as u64;
+
 /// How far, in mean segment lengths, a node may travel in one substep
 /// before it counts as diverged ([`Model::divergence_speed`]).
 pub const DIVERGENCE_REACH: f64 = 10.0;
@@ -101,15 +105,34 @@ pub struct Reseat<T> {
 /// A fabric's element tables and rest values in precision `T`, with the
 /// current parameters, pins and contact liveness.
 ///
+/// The chain (springs and bending joints) is held per node, the layout the
+/// gathering backends read: node i's [`Link`] to its neighbours along its
+/// yarn, the rest length of the segment that leaves it (to its next node)
+/// and the rest angle of the joint centred on it. A node at an open yarn's
+/// end starts no segment or no joint, and its entries there are zero; a
+/// closed yarn's links wrap around. [`Model::springs`] and
+/// [`Model::joints`] list the elements that exist, in node order: for a
+/// fabric of one open yarn, spring i is (i, i + 1) and joint i is
+/// (i, i + 1, i + 2).
+///
 /// Its fields are private so that the rule tying them together holds: a
 /// contact that comes alive away from its rest separation is re-seated
 /// ([`Reseat`]), and only [`Model::set_contacts_alive`] changes liveness.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model<T> {
-    /// Rest length of spring i, between nodes i and i + 1.
-    spring_rest: Vec<T>,
-    /// Rest turning angle θ0 of the joint at node i + 1 (nodes i, i+1, i+2).
-    rest_angle: Vec<T>,
+    /// The fabric's yarns.
+    yarns: Vec<YarnSpan>,
+    /// Each node's neighbours along its yarn.
+    links: Vec<Link>,
+    /// Per node: rest length of the segment from it to its next node (zero
+    /// where none leaves it).
+    segment_rest: Vec<T>,
+    /// Per node: rest turning angle θ0 of the joint centred on it (zero
+    /// where it has no joint).
+    joint_rest: Vec<T>,
+    /// Springs and joints that exist.
+    springs: usize,
+    joints: usize,
     /// The persistent contacts.
     contacts: Vec<ContactRest<T>>,
     /// Liveness of each contact; dead contacts exert no force or friction.
@@ -138,7 +161,7 @@ impl<T: Real> Model<T> {
     pub fn new(fabric: &Fabric, params: &Params) -> Result<Self, BackendError> {
         params.validate()?;
         let scalar = size_of::<T>() as u64;
-        let needed = fabric.node_count() as u64 * SCALARS_PER_NODE * scalar
+        let needed = fabric.node_count() as u64 * (SCALARS_PER_NODE * scalar + INDEX_BYTES_PER_NODE)
             + fabric.contacts().len() as u64 * (8 + SCALARS_PER_CONTACT * scalar);
         check_memory("the simulation's arrays (bytes)", needed, available_memory())?;
         Self::build(fabric, params)
@@ -148,13 +171,23 @@ impl<T: Real> Model<T> {
     /// validated.
     fn build(fabric: &Fabric, params: &Params) -> Result<Self, BackendError> {
         let nodes = fabric.node_count();
-        // Springs are (i, i+1) and triples centre on i+1, in order, so the
-        // tables need no index columns.
-        debug_assert!(fabric.springs().iter().enumerate().all(|(i, s)| s.a as usize == i));
-        debug_assert!(fabric.triples().iter().enumerate().all(|(i, t)| t.b as usize == i + 1));
+        // A node starts at most one segment (to its next node) and centres
+        // at most one joint, so both tables are indexed by node.
+        let mut segment_rest = vec![T::zero(); nodes];
+        for s in fabric.springs() {
+            segment_rest[s.a as usize] = T::of(s.rest_length);
+        }
+        let mut joint_rest = vec![T::zero(); nodes];
+        for t in fabric.triples() {
+            joint_rest[t.b as usize] = T::of(t.rest_angle);
+        }
         let mut model = Self {
-            spring_rest: fabric.springs().iter().map(|s| T::of(s.rest_length)).collect(),
-            rest_angle: fabric.triples().iter().map(|t| T::of(t.rest_angle)).collect(),
+            yarns: fabric.yarns().to_vec(),
+            links: fabric.links(),
+            segment_rest,
+            joint_rest,
+            springs: fabric.springs().len(),
+            joints: fabric.triples().len(),
             contacts: fabric.contacts().iter().map(|c| ContactRest { a: c.a, b: c.b, rest: T::of(c.rest) }).collect(),
             alive: vec![true; fabric.contacts().len()],
             reseating: Vec::new(),
@@ -180,8 +213,9 @@ impl<T: Real> Model<T> {
     /// segment, joint or contact count than this model.
     pub fn in_f64(&self, fabric: &Fabric) -> Result<Model<f64>, BackendError> {
         check_len("fabric nodes", self.nodes, fabric.node_count())?;
-        check_len("fabric springs", self.spring_rest.len(), fabric.springs().len())?;
-        check_len("fabric joints", self.rest_angle.len(), fabric.triples().len())?;
+        check_len("fabric yarns", self.yarns.len(), fabric.yarns().len())?;
+        check_len("fabric springs", self.springs, fabric.springs().len())?;
+        check_len("fabric joints", self.joints, fabric.triples().len())?;
         check_len("fabric contacts", self.contacts.len(), fabric.contacts().len())?;
         let mut model = Model::<f64>::build(fabric, &self.params)?;
         model.pins = self.pins.iter().map(|(node, target)| (*node, widen(target))).collect();
@@ -193,14 +227,52 @@ impl<T: Real> Model<T> {
         Ok(model)
     }
 
-    /// Rest length of spring i, between nodes i and i + 1.
-    pub fn spring_rest(&self) -> &[T] {
-        &self.spring_rest
+    /// The fabric's yarns, in node order.
+    pub fn yarns(&self) -> &[YarnSpan] {
+        &self.yarns
     }
 
-    /// Rest turning angle θ0 of the joint at node i + 1 (nodes i, i+1, i+2).
-    pub fn rest_angle(&self) -> &[T] {
-        &self.rest_angle
+    /// Each node's neighbours along its yarn.
+    pub fn links(&self) -> &[Link] {
+        &self.links
+    }
+
+    /// Per node i: the rest length of the segment from i to its next node
+    /// (`links()[i].next()`), zero where no segment leaves i.
+    pub fn segment_rest(&self) -> &[T] {
+        &self.segment_rest
+    }
+
+    /// Per node i: the rest turning angle θ0 of the joint centred on i
+    /// (nodes `links()[i].prev()`, i, `links()[i].next()`), zero where i
+    /// has no joint.
+    pub fn joint_rest(&self) -> &[T] {
+        &self.joint_rest
+    }
+
+    /// Every stretch spring `(a, b, ℓ0)`, from node a to the next node b
+    /// of its yarn, in order of a.
+    pub fn springs(&self) -> impl Iterator<Item = (usize, usize, T)> + '_ {
+        self.links.iter().enumerate().filter_map(|(a, link)| Some((a, link.next()? as usize, self.segment_rest[a])))
+    }
+
+    /// Every bending joint `([a, b, c], θ0)`, centred on b with a before
+    /// and c after it along its yarn, in order of b.
+    pub fn joints(&self) -> impl Iterator<Item = ([usize; 3], T)> + '_ {
+        self.links
+            .iter()
+            .enumerate()
+            .filter_map(|(b, link)| Some(([link.prev()? as usize, b, link.next()? as usize], self.joint_rest[b])))
+    }
+
+    /// How many springs [`Model::springs`] lists.
+    pub fn spring_count(&self) -> usize {
+        self.springs
+    }
+
+    /// How many joints [`Model::joints`] lists.
+    pub fn joint_count(&self) -> usize {
+        self.joints
     }
 
     /// The persistent contacts, with their rest separations now (re-seated

@@ -338,13 +338,15 @@ fn factorise(symbolic: &SymbolicCholesky<usize>, k: &SparseColMat<usize, f64>) -
 }
 
 /// The stiffness k_b/ℓ² a joint's bend puts on the second difference
-/// x_i − 2 x_{i+1} + x_{i+2} of its nodes, entry (a, b) for a ≥ b.
-fn second_difference(model: &Model<f64>, joint: usize) -> impl Iterator<Item = (usize, usize, f64)> {
-    let rest = model.spring_rest();
-    let l = 0.5 * (rest[joint] + rest[joint + 1]);
+/// x_a − 2 x_b + x_c of its nodes `[a, b, c]`, entry (nodes[i], nodes[j])
+/// for i ≥ j: ℓ is the mean rest length of its two segments, a → b and
+/// b → c.
+fn second_difference(model: &Model<f64>, nodes: [usize; 3]) -> impl Iterator<Item = (usize, usize, f64)> {
+    let rest = model.segment_rest();
+    let l = 0.5 * (rest[nodes[0]] + rest[nodes[1]]);
     let k = model.coeffs().bend / (l * l);
     let d = [1.0, -2.0, 1.0];
-    (0..3).flat_map(move |a| (0..=a).map(move |b| (a, b, k * d[a] * d[b])))
+    (0..3).flat_map(move |i| (0..=i).map(move |j| (nodes[i], nodes[j], k * d[i] * d[j])))
 }
 
 /// The per-coordinate K's lower triangle over the free nodes; `slot[node]`
@@ -363,14 +365,14 @@ fn per_coordinate_entries(model: &Model<f64>, slot: &[Option<usize>]) -> Vec<Tri
         add(j, j, k);
         add(i, j, -k);
     };
-    for i in 0..model.spring_rest().len() {
-        spring(i, i + 1, c.stretch);
+    for (a, b, _) in model.springs() {
+        spring(a, b, c.stretch);
     }
     for (contact, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
         spring(contact.a as usize, contact.b as usize, c.contact);
     }
-    for joint in 0..model.rest_angle().len() {
-        second_difference(model, joint).for_each(|(a, b, k)| add(joint + a, joint + b, k));
+    for (nodes, _) in model.joints() {
+        second_difference(model, nodes).for_each(|(a, b, k)| add(a, b, k));
     }
     // A free fabric moves rigidly at no cost: a small diagonal pins that
     // down without touching the stiff modes.
@@ -393,12 +395,16 @@ fn floor(model: &Model<f64>) -> f64 {
 fn coupled_entries(model: &Model<f64>, slot: &[Option<usize>], x: &[V3<f64>]) -> Vec<Triplet<usize, usize, f64>> {
     let c = model.coeffs();
     let mut entries = Vec::new();
-    // Block (i, j), i ≥ j; of a diagonal block only its lower triangle.
+    // Block (i, j) of the symmetric K, into its lower triangle: of a
+    // diagonal block only its own lower triangle, and a block above the
+    // diagonal (a closed yarn's joint names a later node before an earlier
+    // one) as its transpose below.
     let mut add = |i: usize, j: usize, block: &Matrix3<f64>| {
         if let (Some(a), Some(b)) = (slot[i], slot[j]) {
             for r in 0..3 {
                 for s in (0..3).filter(|&s| a != b || s <= r) {
-                    entries.push(Triplet::new(3 * a + r, 3 * b + s, block[(r, s)]));
+                    let entry = if a >= b { (3 * a + r, 3 * b + s) } else { (3 * b + s, 3 * a + r) };
+                    entries.push(Triplet::new(entry.0, entry.1, block[(r, s)]));
                 }
             }
         }
@@ -416,20 +422,20 @@ fn coupled_entries(model: &Model<f64>, slot: &[Option<usize>], x: &[V3<f64>]) ->
         add(j, j, &block);
         add(i.max(j), i.min(j), &-block);
     };
-    for (i, &rest) in model.spring_rest().iter().enumerate() {
-        spring(i, i + 1, rest, c.stretch);
+    for (a, b, rest) in model.springs() {
+        spring(a, b, rest, c.stretch);
     }
     for (contact, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
         spring(contact.a as usize, contact.b as usize, contact.rest, c.contact);
     }
-    for (joint, &theta0) in model.rest_angle().iter().enumerate() {
-        for (a, b, k) in second_difference(model, joint) {
-            add(joint + a, joint + b, &(Matrix3::identity() * (ISOTROPIC_BEND * k)));
+    for (nodes, theta0) in model.joints() {
+        for (a, b, k) in second_difference(model, nodes) {
+            add(a, b, &(Matrix3::identity() * (ISOTROPIC_BEND * k)));
         }
-        let h = bend_hessian([x[joint], x[joint + 1], x[joint + 2]], c.rest_curl * theta0, c.bend);
+        let h = bend_hessian(nodes.map(|i| x[i]), c.rest_curl * theta0, c.bend);
         for a in 0..3 {
             for b in 0..=a {
-                add(joint + a, joint + b, &h.fixed_view::<3, 3>(3 * a, 3 * b).into_owned());
+                add(nodes[a], nodes[b], &h.fixed_view::<3, 3>(3 * a, 3 * b).into_owned());
             }
         }
     }
@@ -635,12 +641,12 @@ fn joint_forces(a: &V3<f64>, b: &V3<f64>, c: &V3<f64>, target: f64, k: f64) -> O
 /// potential.
 fn add_ramps(model: &Model<f64>, x: &[V3<f64>], forces: &mut [V3<f64>]) {
     let coeffs = model.coeffs();
-    for (i, &theta0) in model.rest_angle().iter().enumerate() {
-        let [a, b, c] = triple(x, i);
+    for (nodes, theta0) in model.joints() {
+        let [a, b, c] = triple(x, nodes);
         if joint(a, b, c).is_some_and(|j| j.zone == Zone::Ramp)
             && let Some(f) = joint_forces(a, b, c, coeffs.rest_curl * theta0, coeffs.bend)
         {
-            (0..3).for_each(|n| forces[i + n] += f[n]);
+            (0..3).for_each(|n| forces[nodes[n]] += f[n]);
         }
     }
 }
@@ -680,9 +686,9 @@ fn bend_change(base: [&V3<f64>; 3], x: [&V3<f64>; 3], target: f64, k: f64) -> f6
     }
 }
 
-/// The joint at node i + 1.
-fn triple(p: &[V3<f64>], i: usize) -> [&V3<f64>; 3] {
-    [&p[i], &p[i + 1], &p[i + 2]]
+/// The positions of a joint's nodes.
+fn triple(p: &[V3<f64>], nodes: [usize; 3]) -> [&V3<f64>; 3] {
+    nodes.map(|i| &p[i])
 }
 
 /// The change of the solve's potential (U with each joint's energy as in
@@ -690,17 +696,11 @@ fn triple(p: &[V3<f64>], i: usize) -> [&V3<f64>; 3] {
 /// ramps added) from positions `base` to `x`, term by term.
 fn energy_change(model: &Model<f64>, base: &[V3<f64>], x: &[V3<f64>]) -> f64 {
     let c = model.coeffs();
-    let stretch: f64 = model
-        .spring_rest()
-        .iter()
-        .enumerate()
-        .map(|(i, &rest)| spring_change([&base[i], &base[i + 1]], [&x[i], &x[i + 1]], rest, c.stretch))
-        .sum();
+    let stretch: f64 =
+        model.springs().map(|(a, b, rest)| spring_change([&base[a], &base[b]], [&x[a], &x[b]], rest, c.stretch)).sum();
     let bend: f64 = model
-        .rest_angle()
-        .iter()
-        .enumerate()
-        .map(|(i, &theta0)| bend_change(triple(base, i), triple(x, i), c.rest_curl * theta0, c.bend))
+        .joints()
+        .map(|(nodes, theta0)| bend_change(triple(base, nodes), triple(x, nodes), c.rest_curl * theta0, c.bend))
         .sum();
     let contact: f64 = model
         .contacts()
@@ -1047,6 +1047,103 @@ mod tests {
     fn sin_at(x: &[V3<f64>], node: usize) -> Option<f64> {
         (node >= 1 && node + 1 < x.len())
             .then(|| (x[node] - x[node - 1]).normalize().cross(&(x[node + 1] - x[node]).normalize()).norm())
+    }
+
+    /// A closed ring of 9 nodes and the same ring numbered from its fourth
+    /// node: both stiffnesses (per coordinate and coupled, at a perturbed
+    /// shape) are the same matrix, renumbered. The ring's wrap-around
+    /// joints name a later node before an earlier one, whose blocks go in
+    /// transposed; numbered from elsewhere those joints are ordinary.
+    #[test]
+    fn a_closed_ring_stiffness_does_not_depend_on_where_it_starts() {
+        let n = 9;
+        let rest: Vec<V3<f64>> = (0..n)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / n as f64;
+                V3::new(3.0 * t.cos(), 3.0 * t.sin(), 0.4 * (2.0 * t).sin())
+            })
+            .collect();
+        let shape: Vec<V3<f64>> = rest
+            .iter()
+            .enumerate()
+            .map(|(i, p)| p + V3::new(0.2 * (i as f64).sin(), 0.1 * (i as f64).cos(), 0.15 * (1.7 * i as f64).sin()))
+            .collect();
+        // Both matrices, dense, of the ring numbered from node `shift`.
+        let stiffness = |shift: usize| {
+            let turn = |p: &[V3<f64>]| (0..n).map(|j| p[(j + shift) % n]).collect::<Vec<_>>();
+            let yarns = vec![yarn_topology::YarnSpan::closed(0..n as u32)];
+            let fabric =
+                Fabric::from_parts(FabricParts { positions: turn(&rest), yarns, ..FabricParts::default() }).unwrap();
+            let model = Model::<f64>::new(&fabric, &Params::default()).unwrap();
+            let slot: Vec<Option<usize>> = (0..n).map(Some).collect();
+            let dense = |size: usize, entries: Vec<Triplet<usize, usize, f64>>| {
+                let mut k = vec![vec![0.0; size]; size];
+                for e in entries {
+                    assert!(e.row >= e.col, "an entry above the diagonal: ({}, {})", e.row, e.col);
+                    k[e.row][e.col] += e.val;
+                    if e.row != e.col {
+                        k[e.col][e.row] += e.val;
+                    }
+                }
+                k
+            };
+            (
+                dense(n, per_coordinate_entries(&model, &slot)),
+                dense(3 * n, coupled_entries(&model, &slot, &turn(&shape))),
+            )
+        };
+        let ((k0, c0), (k3, c3)) = (stiffness(0), stiffness(3));
+        let scale = c0.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+        for a in 0..n {
+            for b in 0..n {
+                let (a0, b0) = ((a + 3) % n, (b + 3) % n);
+                assert!((k3[a][b] - k0[a0][b0]).abs() <= 1e-12 * scale, "per coordinate ({a}, {b})");
+                for (r, s) in (0..3).flat_map(|r| (0..3).map(move |s| (r, s))) {
+                    let (got, want) = (c3[3 * a + r][3 * b + s], c0[3 * a0 + r][3 * b0 + s]);
+                    assert!((got - want).abs() <= 1e-9 * scale, "coupled ({a}, {b}) [{r}{s}]: {got} against {want}");
+                }
+            }
+        }
+        assert!(c0[0][3 * (n - 1)].abs() > 1e-3 * scale, "the ring's closing segment couples its ends");
+    }
+
+    /// Two yarns hung from their first two nodes and a closed ring hung
+    /// from two, a contact tying the first yarn's end to the ring, under
+    /// gravity: the solve brings all three to rest.
+    #[test]
+    fn a_fabric_of_several_yarns_and_a_ring_comes_to_rest() {
+        let mut positions: Vec<V3<f64>> = (0..12).map(|i| V3::new(i as f64, 0.0, 0.0)).collect();
+        positions.extend((0..8).map(|i| V3::new(i as f64, 0.0, 3.0)));
+        positions.extend((0..10).map(|i| {
+            let t = std::f64::consts::TAU * i as f64 / 10.0;
+            V3::new(14.0 + 1.6 * t.cos(), 1.6 * t.sin(), 0.5)
+        }));
+        let yarns = vec![
+            yarn_topology::YarnSpan::open(0..12),
+            yarn_topology::YarnSpan::open(12..20),
+            yarn_topology::YarnSpan::closed(20..30),
+        ];
+        let fabric = Fabric::from_parts(FabricParts {
+            positions: positions.clone(),
+            yarns,
+            contacts: vec![[11, 25]],
+            ..FabricParts::default()
+        })
+        .unwrap();
+        let params = Params { gravity: 9.81, friction: 0.0, ..Params::default() };
+        let mut model = Model::<f64>::new(&fabric, &params).unwrap();
+        let pins: Vec<Pin> = [0, 1, 12, 13, 22, 23].map(|node| Pin { node, target: positions[node as usize] }).to_vec();
+        model.set_pins(&pins).unwrap();
+        let mut state = State::at_rest(&fabric);
+        let report = solve(&model, &mut state, &StaticOptions::default());
+        assert!(report.converged, "{report:?}");
+        let fell =
+            |range: std::ops::Range<usize>| range.map(|i| positions[i].y - state.positions[i].y).fold(0.0, f64::max);
+        assert!(fell(2..12) > 0.1 && fell(14..20) > 0.1 && fell(24..30) > 0.01, "nothing hung");
+        let displacement =
+            predicted_displacement(&model, &vec![V3::new(0.0, -1.0, 0.0); 30]).expect("positive definite");
+        assert!(displacement.iter().all(|d| d.iter().all(|c| c.is_finite())));
+        assert!(pins.iter().all(|p| displacement[p.node as usize] == V3::zeros()));
     }
 
     /// The "(default: X)" in each option's doc matches `Default`.

@@ -43,21 +43,23 @@ pub struct Scratch<T: Real> {
 }
 
 /// F = −∇U(x) over alive contacts (SPEC §4 step 1), written into `forces`,
-/// which is resized to the node count.
+/// which is resized to the node count. Springs and joints follow each
+/// yarn ([`Model::springs`], [`Model::joints`]), wrapping around closed
+/// ones, and never join two.
 pub fn accumulate_forces<T: Real>(model: &Model<T>, x: &[V3<T>], forces: &mut Vec<V3<T>>) {
     let c = model.coeffs();
     forces.clear();
     forces.resize(x.len(), gravity_force(c.mass, c.gravity));
-    for (i, &rest) in model.spring_rest().iter().enumerate() {
-        let f = spring_force(&x[i], &x[i + 1], rest, c.stretch);
-        forces[i] += f;
-        forces[i + 1] -= f;
+    for (a, b, rest) in model.springs() {
+        let f = spring_force(&x[a], &x[b], rest, c.stretch);
+        forces[a] += f;
+        forces[b] -= f;
     }
-    for (i, &theta0) in model.rest_angle().iter().enumerate() {
-        if let Some([fa, fb, fc]) = bend_forces(&x[i], &x[i + 1], &x[i + 2], c.rest_curl * theta0, c.bend) {
-            forces[i] += fa;
-            forces[i + 1] += fb;
-            forces[i + 2] += fc;
+    for ([a, b, c_], theta0) in model.joints() {
+        if let Some([fa, fb, fc]) = bend_forces(&x[a], &x[b], &x[c_], c.rest_curl * theta0, c.bend) {
+            forces[a] += fa;
+            forces[b] += fb;
+            forces[c_] += fc;
         }
     }
     for (contact, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
@@ -83,16 +85,10 @@ pub fn potential<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Energy {
     let c = model.coeffs();
     let sum = |values: &mut dyn Iterator<Item = T>| values.map(Real::to_f64).sum::<f64>();
     Energy {
-        stretch: sum(&mut model
-            .spring_rest()
-            .iter()
-            .enumerate()
-            .map(|(i, &rest)| spring_energy(&x[i], &x[i + 1], rest, c.stretch))),
+        stretch: sum(&mut model.springs().map(|(a, b, rest)| spring_energy(&x[a], &x[b], rest, c.stretch))),
         bend: sum(&mut model
-            .rest_angle()
-            .iter()
-            .enumerate()
-            .map(|(i, &theta0)| bend_energy(&x[i], &x[i + 1], &x[i + 2], c.rest_curl * theta0, c.bend))),
+            .joints()
+            .map(|([a, b, j], theta0)| bend_energy(&x[a], &x[b], &x[j], c.rest_curl * theta0, c.bend))),
         contact: sum(&mut model
             .contacts()
             .iter()
@@ -251,9 +247,8 @@ mod tests {
     fn present(term: Term, model: &Model<f64>, x: &[V3<f64>]) -> (bool, String) {
         let u = potential(model, x);
         let c = model.coeffs();
-        let bent = (0..model.rest_angle().len())
-            .filter(|&i| bend_forces(&x[i], &x[i + 1], &x[i + 2], 0.0, c.bend).is_some())
-            .count();
+        let bent =
+            model.joints().filter(|([a, b, j], _)| bend_forces(&x[*a], &x[*b], &x[*j], 0.0, c.bend).is_some()).count();
         let live = model.alive().iter().filter(|&&a| a).count();
         let seen = format!("{u:?}, {bent} bent joints, {live} live contacts");
         let here = match term {
@@ -330,6 +325,152 @@ mod tests {
             }
             check_gradient(&model, &state);
         }
+    }
+
+    /// A fabric of several yarns laid as random walks (steps 0.4 to 1.5
+    /// long, so no segment is zero), one yarn after another, each open or
+    /// closed as `yarns` says (closed only from 3 nodes), with contacts
+    /// between random nodes of any yarns.
+    fn yarns_fabric(yarns: &[(usize, bool)], seed: u64) -> Fabric {
+        let mut rng = seed | 1;
+        let mut next = move || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut positions, mut spans) = (Vec::new(), Vec::new());
+        for &(len, closed) in yarns {
+            let start = positions.len() as u32;
+            let mut at = yarn_topology::Vec3::new(3.0 * next(), 3.0 * next(), next());
+            for _ in 0..len {
+                positions.push(at);
+                let step = yarn_topology::Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5);
+                at += step.normalize() * (0.4 + 1.1 * next());
+            }
+            let end = positions.len() as u32;
+            spans.push(yarn_topology::YarnSpan { start, end, closed: closed && len >= 3 });
+        }
+        let n = positions.len();
+        let contacts = (0..n / 2)
+            .map(|_| [(next() * n as f64) as u32 % n as u32, (next() * n as f64) as u32 % n as u32])
+            .filter(|[a, b]| a != b)
+            .collect();
+        Fabric::from_parts(FabricParts { positions, yarns: spans, contacts, ..FabricParts::default() }).unwrap()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+
+        /// Every term together on every degree of freedom of random fabrics
+        /// of several yarns, open and closed and at least one closed, each
+        /// perturbed: the wrap-around springs and joints of a closed yarn
+        /// are exact gradients like the rest, and no term joins two yarns
+        /// (a spring across a break would be a force without an energy).
+        #[test]
+        fn forces_are_minus_gradient_on_several_yarns(
+            yarns in proptest::collection::vec((1usize..9, any::<bool>()), 1..5),
+            ring in 3usize..9,
+            seed in any::<u64>(),
+        ) {
+            let mut yarns = yarns;
+            yarns.push((ring, true));
+            let fabric = yarns_fabric(&yarns, seed);
+            prop_assert!(fabric.yarns().iter().any(|y| y.closed));
+            let model = Model::<f64>::new(&fabric, &Term::All.params()).unwrap();
+            check_gradient(&model, &State::<f64>::at_rest(&fabric));
+            let mut state = State::<f64>::at_rest(&fabric);
+            let mut rng = seed;
+            let mut next = || {
+                rng = rng.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+                (rng >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            };
+            for p in &mut state.positions {
+                *p += V3::new(next(), next(), next()) * 0.3;
+            }
+            check_gradient(&model, &state);
+        }
+    }
+
+    /// Two open yarns, the second starting 0.5 from where the first ends:
+    /// a spring across the break would pull the two ends together. Each
+    /// yarn's nodes feel exactly, bit for bit, the forces the yarn alone
+    /// gives them, and so do the energies.
+    #[test]
+    fn an_isolated_yarn_end_feels_only_its_own_yarn() {
+        let arc = |from: f64, n: usize| -> Vec<yarn_topology::Vec3> {
+            (0..n).map(|i| yarn_topology::Vec3::new(from + i as f64, (0.3 * i as f64).sin(), 0.1 * i as f64)).collect()
+        };
+        let (a, b) = (arc(0.0, 10), arc(9.5, 12));
+        let both: Vec<_> = a.iter().chain(&b).copied().collect();
+        let spans = vec![yarn_topology::YarnSpan::open(0..10), yarn_topology::YarnSpan::open(10..22)];
+        let fabric = |positions: Vec<yarn_topology::Vec3>, yarns| {
+            Fabric::from_parts(FabricParts { positions, yarns, ..FabricParts::default() }).unwrap()
+        };
+        let (two, alone_a, alone_b) = (fabric(both, spans), fabric(a, Vec::new()), fabric(b, Vec::new()));
+        let params = Params { gravity: 9.81, ..Params::default() };
+        let forces = |fabric: &Fabric| {
+            let model = Model::<f64>::new(fabric, &params).unwrap();
+            let mut state = State::<f64>::at_rest(fabric);
+            // Pull every node off its rest so every element is loaded, by
+            // where it is (not its index, which differs between fabrics).
+            for p in &mut state.positions {
+                *p += V3::new(0.05 * (3.0 * p.x).cos(), 0.07, -0.03 * (2.0 * p.x).sin());
+            }
+            let mut f = Vec::new();
+            accumulate_forces(&model, &state.positions, &mut f);
+            (f, potential(&model, &state.positions))
+        };
+        let (f_two, u_two) = forces(&two);
+        let (f_a, u_a) = forces(&alone_a);
+        let (f_b, u_b) = forces(&alone_b);
+        assert_eq!(&f_two[..10], f_a.as_slice(), "the first yarn's nodes");
+        assert_eq!(&f_two[10..], f_b.as_slice(), "the second yarn's nodes");
+        assert!(f_two[9].norm() > 1.0 && f_two[10].norm() > 1.0, "the ends must be loaded to mean anything");
+        assert_eq!(two.springs().len(), 9 + 11);
+        assert!((u_two.stretch - (u_a.stretch + u_b.stretch)).abs() <= 1e-12 * u_two.stretch);
+        assert!((u_two.bend - (u_a.bend + u_b.bend)).abs() <= 1e-12 * u_two.bend);
+    }
+
+    /// A ring of 24 nodes as one closed yarn: at its rest shape with
+    /// κ = 1 no node feels a force, the closing segment's spring and the
+    /// two joints that wrap around included. Drawn apart at the closing
+    /// segment, the closed ring pulls its last node toward its first where
+    /// the same ring laid open does not.
+    #[test]
+    fn a_closed_ring_at_its_rest_shape_has_zero_force() {
+        let n = 24;
+        let positions: Vec<yarn_topology::Vec3> = (0..n)
+            .map(|i| {
+                let t = 2.0 * std::f64::consts::PI * i as f64 / n as f64;
+                V3::new(5.0 * t.cos(), 5.0 * t.sin(), 0.3 * (3.0 * t).sin())
+            })
+            .collect();
+        let ring = |closed: bool| {
+            let yarns = vec![yarn_topology::YarnSpan { start: 0, end: n as u32, closed }];
+            Fabric::from_parts(FabricParts { positions: positions.clone(), yarns, ..FabricParts::default() }).unwrap()
+        };
+        let (closed, open) = (ring(true), ring(false));
+        assert_eq!((closed.springs().len(), closed.triples().len()), (n, n));
+        let params = Params { rest_curl: 1.0, ..Params::default() };
+        let forces = |fabric: &Fabric, x: &[V3<f64>]| {
+            let mut f = Vec::new();
+            accumulate_forces(&Model::<f64>::new(fabric, &params).unwrap(), x, &mut f);
+            f
+        };
+        let rest = State::<f64>::at_rest(&closed).positions;
+        let largest = forces(&closed, &rest).iter().map(|f| f.norm()).fold(0.0, f64::max);
+        assert!(largest < 1e-10, "largest force {largest} on the ring at rest");
+        let mut drawn = rest.clone();
+        drawn[0] *= 1.1;
+        let pull = forces(&closed, &drawn)[n - 1];
+        assert!(pull.dot(&(drawn[0] - drawn[n - 1])) > 1.0, "the closing spring does not pull: {pull:?}");
+        assert_eq!(forces(&open, &drawn)[n - 1], forces(&open, &rest)[n - 1], "the open ring's end felt node 0");
+        // With κ < 1 the closed ring is pre-stressed everywhere, its wrap too.
+        let model = Model::<f64>::new(&closed, &Params::default()).unwrap();
+        let mut f = Vec::new();
+        accumulate_forces(&model, &rest, &mut f);
+        assert!(f[0].norm() > 1e-3 && f[n - 1].norm() > 1e-3, "{:?} {:?}", f[0], f[n - 1]);
     }
 
     #[test]

@@ -1,16 +1,19 @@
-// The yarn as a swept tube (paper §9): one instance per segment, SIDES ring
-// vertices at each end generated here from the node positions and their
-// parallel-transport frames, so no tube geometry is stored. Lambert shading
-// under a key light, an ambient floor and a rim term; two tones alternating
-// along the yarn read as ply.
+// The yarns as swept tubes (paper §9): one instance per node, for the
+// segment leaving it along its yarn, SIDES ring vertices at each end
+// generated here from the node positions and their parallel-transport
+// frames, so no tube geometry is stored. Each yarn is its own tube: a node
+// at an open yarn's end starts no segment, and a closed yarn's last node's
+// segment runs back to its first. Lambert shading under a key light, an
+// ambient floor and a rim term; two tones alternating along the yarn read
+// as ply.
 
-// Mirrors `Camera` in src/lib.rs.
+// Mirrors `Camera` in src/shader.rs.
 struct Camera {
     view_proj: mat4x4<f32>,
     eye: vec3<f32>,
     radius: f32,
     light: vec3<f32>,
-    segments: u32,
+    nodes: u32,
 }
 
 @group(0) @binding(0) var<uniform> camera: Camera;
@@ -18,9 +21,13 @@ struct Camera {
 // the yarn and transported along it without twisting.
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
+// Each node's neighbours along its yarn (before, after), NONE at an open
+// yarn's ends.
+@group(0) @binding(3) var<storage, read> links: array<vec2<u32>>;
 
 const SIDES: u32 = 7u;
 const TAU: f32 = 6.28318530718;
+const NONE: u32 = 0xffffffffu;
 
 struct Out {
     @builtin(position) clip: vec4<f32>,
@@ -31,9 +38,9 @@ struct Out {
 
 // The tangent at node j: the mean of its segments' directions.
 fn tangent(j: u32) -> vec3<f32> {
-    let last = camera.segments;
-    let before = positions[min(j, last)].xyz - positions[select(j - 1u, 0u, j == 0u)].xyz;
-    let after = positions[min(j + 1u, last)].xyz - positions[j].xyz;
+    let link = links[j];
+    let before = positions[j].xyz - positions[select(link.x, j, link.x == NONE)].xyz;
+    let after = positions[select(link.y, j, link.y == NONE)].xyz - positions[j].xyz;
     let sum = select(vec3<f32>(0.0), normalize(before), length(before) > 0.0)
         + select(vec3<f32>(0.0), normalize(after), length(after) > 0.0);
     return select(vec3<f32>(1.0, 0.0, 0.0), normalize(sum), length(sum) > 1e-6);
@@ -41,19 +48,27 @@ fn tangent(j: u32) -> vec3<f32> {
 
 @vertex
 fn vs(@builtin(vertex_index) vertex: u32, @builtin(instance_index) segment: u32) -> Out {
-    // Six vertices per side: two triangles between ring k and ring k + 1.
+    var out: Out;
+    let next = links[segment].y;
+    if next == NONE {
+        // No segment leaves an open yarn's last node: every vertex at one
+        // point outside the clip volume, a triangle of no area.
+        out.clip = vec4<f32>(0.0, 0.0, 2.0, 1.0);
+        return out;
+    }
+    // Six vertices per side: two triangles between this node's ring and the
+    // next node's.
     let side = vertex / 6u;
     let corner = vertex % 6u;
     let around = array<u32, 6>(0u, 1u, 0u, 0u, 1u, 1u)[corner];
     let along = array<u32, 6>(0u, 0u, 1u, 1u, 0u, 1u)[corner];
-    let node = segment + along;
+    let node = select(segment, next, along == 1u);
     let t = tangent(node);
     let n = normalize(normals[node].xyz - t * dot(normals[node].xyz, t));
     let b = cross(t, n);
     let angle = TAU * f32((side + around) % SIDES) / f32(SIDES);
     let direction = cos(angle) * n + sin(angle) * b;
     let world = positions[node].xyz + camera.radius * direction;
-    var out: Out;
     out.clip = camera.view_proj * vec4<f32>(world, 1.0);
     out.normal = direction;
     out.world = world;

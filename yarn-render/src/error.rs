@@ -41,6 +41,10 @@ pub enum RenderError {
         /// The yarn's node count.
         nodes: usize,
     },
+    /// The yarn spans do not cover the positions as a fabric's must
+    /// ([`yarn_topology::validate_yarns`]).
+    #[error("the yarns do not fit the positions: {0}")]
+    Yarns(#[from] yarn_topology::TopologyError),
     /// The GPU failed.
     #[error("GPU error while rendering: {0}")]
     Device(String),

@@ -66,7 +66,12 @@ impl Renderer {
         let storage = wgpu::BufferBindingType::Storage { read_only: true };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("yarn"),
-            entries: &[entry(0, wgpu::BufferBindingType::Uniform), entry(1, storage), entry(2, storage)],
+            entries: &[
+                entry(0, wgpu::BufferBindingType::Uniform),
+                entry(1, storage),
+                entry(2, storage),
+                entry(3, storage),
+            ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("yarn"),
@@ -131,7 +136,7 @@ impl Renderer {
             eye: [eye.x as f32, eye.y as f32, eye.z as f32],
             radius: yarn.framing.radius(),
             light: [light.x as f32, light.y as f32, light.z as f32],
-            segments: (yarn.nodes - 1) as u32,
+            nodes: yarn.nodes as u32,
         };
         self.queue.write_buffer(&yarn.camera, 0, bytemuck::bytes_of(&uniform));
         let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -141,6 +146,7 @@ impl Renderer {
                 wgpu::BindGroupEntry { binding: 0, resource: yarn.camera.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: positions.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 2, resource: yarn.normals.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: yarn.links.as_entire_binding() },
             ],
         });
         let mut targets = self.targets.lock().unwrap_or_else(PoisonError::into_inner);
@@ -171,7 +177,9 @@ impl Renderer {
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &group, &[]);
-        pass.draw(0..SIDES * 6, 0..(yarn.nodes - 1) as u32);
+        // One instance per node, for the segment leaving it (none at an open
+        // yarn's end, which draws nothing).
+        pass.draw(0..SIDES * 6, 0..yarn.nodes as u32);
         Ok(())
     }
 

@@ -5,26 +5,34 @@
 
 use wgpu::util::DeviceExt;
 use yarn_backend_wgpu::read_mapped;
+use yarn_topology::YarnSpan;
 
 use crate::camera::View;
 use crate::positions::{check, vec4s};
 use crate::{Frame, RenderError, Renderer};
 
 impl Renderer {
-    /// Draw the yarn through `positions` as a tube of `radius`, framed by
-    /// `view`.
+    /// Draw the yarns through `positions` as tubes of `radius`, framed by
+    /// `view`: each of `yarns` its own tube (empty: one open yarn over
+    /// every node), a closed yarn's closing on itself.
     ///
     /// # Errors
-    /// Fewer than two positions, a non-finite one, a bad image size, or a
-    /// GPU failure.
-    pub fn render(&self, positions: &[[f32; 3]], radius: f32, view: &View) -> Result<Frame, RenderError> {
-        check(positions)?;
+    /// Fewer than two positions, a non-finite one, yarns that do not cover
+    /// them, a bad image size, or a GPU failure.
+    pub fn render(
+        &self,
+        positions: &[[f32; 3]],
+        yarns: &[YarnSpan],
+        radius: f32,
+        view: &View,
+    ) -> Result<Frame, RenderError> {
+        check(positions, yarns)?;
         let position_buffer = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("positions"),
             contents: bytemuck::cast_slice(&vec4s(positions)),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        self.image(&position_buffer, positions, radius, view)
+        self.image(&position_buffer, positions, yarns, radius, view)
     }
 
     /// Draw the yarn whose positions are already on this renderer's GPU, in
@@ -32,7 +40,8 @@ impl Renderer {
     /// `yarn_backend_wgpu::Wgpu::positions`), so nothing comes back to the
     /// CPU. `reference` is the same yarn in a shape known here, such as its
     /// rest shape: it sets the tube frames (re-squared to the current
-    /// tangents in the shader) and the framing.
+    /// tangents in the shader) and the framing; `yarns` as for
+    /// [`Renderer::render`].
     ///
     /// # Errors
     /// As [`Renderer::render`], for `reference`; and a buffer too small for
@@ -41,10 +50,11 @@ impl Renderer {
         &self,
         positions: &wgpu::Buffer,
         reference: &[[f32; 3]],
+        yarns: &[YarnSpan],
         radius: f32,
         view: &View,
     ) -> Result<Frame, RenderError> {
-        self.image(positions, reference, radius, view)
+        self.image(positions, reference, yarns, radius, view)
     }
 
     /// Draw `positions` with frames and framing from `shape` into an image.
@@ -52,10 +62,11 @@ impl Renderer {
         &self,
         positions: &wgpu::Buffer,
         shape: &[[f32; 3]],
+        yarns: &[YarnSpan],
         radius: f32,
         view: &View,
     ) -> Result<Frame, RenderError> {
-        let yarn = self.yarn(shape, radius)?;
+        let yarn = self.yarn(shape, yarns, radius)?;
         self.check_size(view)?;
         let device = &self.device;
         let size = wgpu::Extent3d { width: view.width, height: view.height, depth_or_array_layers: 1 };

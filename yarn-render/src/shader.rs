@@ -19,7 +19,8 @@ pub(crate) struct Camera {
     pub(crate) eye: [f32; 3],
     pub(crate) radius: f32,
     pub(crate) light: [f32; 3],
-    pub(crate) segments: u32,
+    /// The node count.
+    pub(crate) nodes: u32,
 }
 
 #[cfg(test)]
@@ -45,11 +46,12 @@ mod tests {
                 std::mem::offset_of!(Camera, eye),
                 std::mem::offset_of!(Camera, radius),
                 std::mem::offset_of!(Camera, light),
-                std::mem::offset_of!(Camera, segments),
+                std::mem::offset_of!(Camera, nodes),
             ]
             .map(|o| o as u32),
             offsets.as_slice()
         );
         assert!(SHADER.contains(&format!("const SIDES: u32 = {SIDES}u;")));
+        assert!(SHADER.contains(&format!("const NONE: u32 = {:#x}u;", yarn_topology::Link::NONE)));
     }
 }

@@ -4,20 +4,25 @@
 //! prepares data; it must not record passes or read anything back.
 
 use wgpu::util::DeviceExt;
+use yarn_topology::YarnSpan;
 
 use crate::camera::{Framing, View};
-use crate::positions::{check, vec4s};
+use crate::positions::{check, links, spans, vec4s};
 use crate::shader::Camera;
 use crate::transport::transport_normals;
 use crate::{RenderError, Renderer};
 
-/// A yarn ready to draw from a position buffer: its tube frames on the GPU,
-/// the bounds that frame it, and its camera's uniform buffer. Made once per
-/// fabric by [`Renderer::yarn`], then drawn every frame.
+/// A fabric's yarns ready to draw from a position buffer: their tube
+/// frames and each node's neighbours along its yarn on the GPU, the bounds
+/// that frame them, and the camera's uniform buffer. Made once per fabric
+/// by [`Renderer::yarn`], then drawn every frame.
 #[derive(Debug)]
 pub struct Yarn {
     /// One `vec4<f32>` frame normal a node, from the reference shape.
     pub(crate) normals: wgpu::Buffer,
+    /// One `vec2<u32>` a node: the nodes before and after it along its
+    /// yarn, `Link::NONE` for none.
+    pub(crate) links: wgpu::Buffer,
     /// The uniform buffer [`Renderer::draw`] writes a [`Camera`] into.
     pub(crate) camera: wgpu::Buffer,
     /// The reference shape's bounds and the tube radius.
@@ -42,15 +47,18 @@ impl Yarn {
 }
 
 impl Renderer {
-    /// Prepare the yarn of `reference` for drawing from a position buffer
-    /// of the same node count: `reference` (its rest shape, say) sets the
-    /// tube frames (re-squared to the current tangents in the shader) and
-    /// the framing.
+    /// Prepare the yarns of `reference` for drawing from a position buffer
+    /// of the same node count, each of `yarns` as its own tube (empty: one
+    /// open yarn over every node; a closed yarn's tube closes):
+    /// `reference` (its rest shape, say) sets the tube frames (re-squared
+    /// to the current tangents in the shader) and the framing.
     ///
     /// # Errors
-    /// Fewer than two positions or a non-finite one.
-    pub fn yarn(&self, reference: &[[f32; 3]], radius: f32) -> Result<Yarn, RenderError> {
-        check(reference)?;
+    /// Fewer than two positions, a non-finite one, or yarns that do not
+    /// cover them ([`RenderError::Yarns`]).
+    pub fn yarn(&self, reference: &[[f32; 3]], yarns: &[YarnSpan], radius: f32) -> Result<Yarn, RenderError> {
+        check(reference, yarns)?;
+        let yarns = spans(yarns, reference.len());
         let framing = Framing::of(reference, radius);
         let camera = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("camera"),
@@ -60,9 +68,14 @@ impl Renderer {
         });
         let normals = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("normals"),
-            contents: bytemuck::cast_slice(&vec4s(&transport_normals(reference))),
+            contents: bytemuck::cast_slice(&vec4s(&transport_normals(reference, &yarns))),
             usage: wgpu::BufferUsages::STORAGE,
         });
-        Ok(Yarn { normals, camera, framing, nodes: reference.len() })
+        let links = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("links"),
+            contents: bytemuck::cast_slice(&links(&yarns)),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        Ok(Yarn { normals, links, camera, framing, nodes: reference.len() })
     }
 }

@@ -38,7 +38,7 @@ const COVERAGE: std::ops::RangeInclusive<f64> = (0.75 * MEASURED_COVERAGE)..=(1.
 fn a_patch_covers_the_frame_and_a_degenerate_one_does_not() {
     let Some(renderer) = renderer() else { return };
     let (positions, radius) = patch(6, 6);
-    let frame = renderer.render(&positions, radius, &SMALL).expect("render");
+    let frame = renderer.render(&positions, &[], radius, &SMALL).expect("render");
     assert_eq!(frame.rgba.len(), 320 * 240 * 4);
     let coverage = frame.coverage();
     println!(
@@ -56,7 +56,7 @@ fn a_patch_covers_the_frame_and_a_degenerate_one_does_not() {
     // Every node in one place: the camera frames a single tube cross-section
     // at most, never a fabric; a tiny radius leaves the frame nearly blank.
     let collapsed = vec![[1.0, 2.0, 3.0]; positions.len()];
-    let blank = renderer.render(&collapsed, 1e-4, &SMALL).expect("render");
+    let blank = renderer.render(&collapsed, &[], 1e-4, &SMALL).expect("render");
     assert!(blank.coverage() < 0.02, "a degenerate yarn covered {}", blank.coverage());
     assert!(blank.rgba.chunks_exact(4).any(|p| p == BACKGROUND));
 }
@@ -64,12 +64,12 @@ fn a_patch_covers_the_frame_and_a_degenerate_one_does_not() {
 #[test]
 fn bad_input_is_refused() {
     let Some(renderer) = renderer() else { return };
-    assert!(matches!(renderer.render(&[[0.0; 3]], 1.0, &SMALL), Err(RenderError::TooFewNodes(1))));
+    assert!(matches!(renderer.render(&[[0.0; 3]], &[], 1.0, &SMALL), Err(RenderError::TooFewNodes(1))));
     let bad = [[0.0, 0.0, 0.0], [f32::NAN, 0.0, 0.0]];
-    assert!(matches!(renderer.render(&bad, 1.0, &SMALL), Err(RenderError::NotFinite { index: 1, .. })));
+    assert!(matches!(renderer.render(&bad, &[], 1.0, &SMALL), Err(RenderError::NotFinite { index: 1, .. })));
     let (positions, radius) = patch(2, 2);
     let zero = View { width: 0, ..SMALL };
-    assert!(matches!(renderer.render(&positions, radius, &zero), Err(RenderError::BadSize { .. })));
+    assert!(matches!(renderer.render(&positions, &[], radius, &zero), Err(RenderError::BadSize { .. })));
 }
 
 /// Drawing straight from the GPU backend's buffer gives the picture that
@@ -86,7 +86,7 @@ fn positions_on_the_gpu_draw_like_positions_read_back() {
     backend.advance(300).expect("advance");
     let rest: Vec<[f32; 3]> = fabric.positions().iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
     let radius = fabric.yarn_radius() as f32;
-    let on_gpu = renderer.render_gpu(backend.positions().expect("loaded"), &rest, radius, &SMALL).expect("render");
+    let on_gpu = renderer.render_gpu(backend.positions().expect("loaded"), &rest, &[], radius, &SMALL).expect("render");
     let now: Vec<[f32; 3]> = backend.state().expect("state").positions.iter().map(|p| [p.x, p.y, p.z]).collect();
     assert_ne!(now, rest, "the fabric must have moved for this to mean anything");
     // The same frames and framing, from the rest shape, over the read-back
@@ -100,7 +100,7 @@ fn positions_on_the_gpu_draw_like_positions_read_back() {
             usage: yarn_backend_wgpu::wgpu::BufferUsages::STORAGE,
         })
     };
-    let read_back = renderer.render_gpu(&position_buffer, &rest, radius, &SMALL).expect("render");
+    let read_back = renderer.render_gpu(&position_buffer, &rest, &[], radius, &SMALL).expect("render");
     assert_eq!(on_gpu, read_back);
     assert!(on_gpu.coverage() > 0.1, "{}", on_gpu.coverage());
     // And a buffer too small for the reference is refused.
@@ -111,7 +111,7 @@ fn positions_on_the_gpu_draw_like_positions_read_back() {
         mapped_at_creation: false,
     });
     assert!(matches!(
-        renderer.render_gpu(&small, &rest, radius, &SMALL),
+        renderer.render_gpu(&small, &rest, &[], radius, &SMALL),
         Err(RenderError::PositionBufferTooSmall { bytes: 16, .. })
     ));
 }
@@ -125,7 +125,7 @@ fn a_position_buffer_too_small_for_the_yarn_is_refused_by_name() {
     let renderer = Renderer::new(&gpu);
     let (positions, radius) = patch(3, 3);
     let nodes = positions.len();
-    let yarn = renderer.yarn(&positions, radius).expect("yarn");
+    let yarn = renderer.yarn(&positions, &[], radius).expect("yarn");
     // One node short of a vec4<f32> per node.
     let short = gpu.device().create_buffer(&wgpu::BufferDescriptor {
         label: None,
@@ -155,7 +155,7 @@ fn a_position_buffer_too_small_for_the_yarn_is_refused_by_name() {
     assert!(message.contains(&format!("{bytes} bytes")) && message.contains(&format!("{nodes} nodes")), "{message}");
     // The same buffer through the offscreen path, and a buffer of the right size draws.
     assert!(matches!(
-        renderer.render_gpu(&short, &positions, radius, &SMALL),
+        renderer.render_gpu(&short, &positions, &[], radius, &SMALL),
         Err(RenderError::PositionBufferTooSmall { bytes: refused, nodes: counted, .. }) if refused == bytes && counted == nodes
     ));
     let exact = gpu.device().create_buffer(&wgpu::BufferDescriptor {
@@ -164,14 +164,14 @@ fn a_position_buffer_too_small_for_the_yarn_is_refused_by_name() {
         usage: wgpu::BufferUsages::STORAGE,
         mapped_at_creation: false,
     });
-    assert!(renderer.render_gpu(&exact, &positions, radius, &SMALL).is_ok());
+    assert!(renderer.render_gpu(&exact, &positions, &[], radius, &SMALL).is_ok());
 }
 
 #[test]
 fn picking_projects_nodes_onto_their_pixels_and_back() {
     let Some(renderer) = renderer() else { return };
     let (positions, radius) = patch(6, 6);
-    let yarn = renderer.yarn(&positions, radius).expect("yarn");
+    let yarn = renderer.yarn(&positions, &[], radius).expect("yarn");
     for view in [SMALL, View { orbit: 0.7, elevation: -0.3, zoom: 2.5, ..SMALL }] {
         let mut inside = 0;
         for p in &positions {
@@ -193,9 +193,52 @@ fn picking_projects_nodes_onto_their_pixels_and_back() {
     }
     // Nodes drawn where `project` says: the pixel under the centre node's
     // projection is yarn, not background.
-    let frame = renderer.render(&positions, radius, &SMALL).expect("render");
+    let frame = renderer.render(&positions, &[], radius, &SMALL).expect("render");
     let centre = positions[positions.len() / 2];
     let [x, y, _] = yarn.project(&SMALL, centre).expect("projects");
     let at = 4 * (y as usize * 320 + x as usize);
     assert_ne!(&frame.rgba[at..at + 4], BACKGROUND.as_slice(), "no yarn under node {centre:?} at ({x}, {y})");
+}
+
+/// Each yarn is its own tube: two open yarns end to end, 3 apart, drawn as
+/// two yarns leave the middle of the gap background, where drawn as one
+/// yarn a tube bridges it; a ring of 12 nodes drawn closed covers the
+/// middle of its closing segment, drawn open it leaves it background. The
+/// OBJ mesh says the same: no face joins the two yarns.
+#[test]
+fn each_yarn_is_its_own_tube_and_a_closed_one_closes() {
+    use yarn_topology::YarnSpan;
+    let Some(renderer) = renderer() else { return };
+    let positions: Vec<[f32; 3]> = (0..8)
+        .map(|i| [i as f32, 0.2 * (i as f32).sin(), 0.0])
+        .chain((0..8).map(|i| [10.0 + i as f32, 0.2 * (i as f32).cos(), 0.0]))
+        .chain(
+            (0..12)
+                .map(|i| i as f32 * std::f32::consts::TAU / 12.0)
+                .map(|t| [8.5 + 2.0 * t.cos(), 6.0 + 2.0 * t.sin(), 0.0]),
+        )
+        .collect();
+    let yarns = [YarnSpan::open(0..8), YarnSpan::open(8..16), YarnSpan::closed(16..28)];
+    let bridged = [YarnSpan::open(0..16), YarnSpan::open(16..28)];
+    let radius = 0.3;
+    let view = View { elevation: 0.0, ..SMALL };
+    let apart = renderer.render(&positions, &yarns, radius, &view).expect("render");
+    let joined = renderer.render(&positions, &bridged, radius, &view).expect("render");
+    let yarn = renderer.yarn(&positions, &yarns, radius).expect("yarn");
+    let pixel = |frame: &yarn_render::Frame, at: [f32; 3]| {
+        let [x, y, _] = yarn.project(&view, at).expect("in front of the camera");
+        let i = 4 * (y as usize * view.width as usize + x as usize);
+        frame.rgba[i..i + 4] == BACKGROUND
+    };
+    let gap = [8.5, 0.1, 0.0];
+    assert!(pixel(&apart, gap), "a tube bridges the two yarns");
+    assert!(!pixel(&joined, gap), "drawn as one yarn, the gap should be bridged");
+    let closing = [0.5 * (positions[27][0] + positions[16][0]), 0.5 * (positions[27][1] + positions[16][1]), 0.0];
+    assert!(!pixel(&apart, closing), "the closed ring's tube does not close");
+    assert!(pixel(&joined, closing), "drawn open, the ring should have a gap");
+    assert!(apart.coverage() > 0.02, "{}", apart.coverage());
+    assert!(matches!(
+        renderer.render(&positions, &[YarnSpan::open(0..8)], radius, &view),
+        Err(RenderError::Yarns(yarn_topology::TopologyError::YarnsEndEarly { end: 8, nodes: 28 }))
+    ));
 }

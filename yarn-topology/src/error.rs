@@ -78,11 +78,75 @@ pub enum TopologyError {
         /// The value found.
         value: f64,
     },
-    /// Two consecutive nodes coincide, so the segment has no direction.
-    #[error("segment {segment} (nodes {segment} and {}) has zero length; move one of them", segment + 1)]
+    /// Two consecutive nodes of a yarn coincide, so the segment between
+    /// them has no direction. A closed yarn's closing segment runs from its
+    /// last node back to its first.
+    #[error("segment {segment} (nodes {segment} and {next}) has zero length; move one of them")]
     ZeroLengthSegment {
-        /// Index of the first node of the segment.
+        /// The segment, named by its first node.
         segment: usize,
+        /// Its second node: `segment + 1`, or a closed yarn's first node.
+        next: usize,
+    },
+    /// A yarn starts after the node where the yarn before it ended (or,
+    /// for the first yarn, after node 0): the nodes between belong to none.
+    #[error(
+        "yarn {yarn} starts at node {start}, but node {expected} is the first not in an earlier yarn; \
+         yarns must cover the nodes in order without gaps"
+    )]
+    YarnGap {
+        /// The offending yarn.
+        yarn: usize,
+        /// Its first node.
+        start: usize,
+        /// Where it should start: where the yarn before it ends (0 for the first).
+        expected: usize,
+    },
+    /// A yarn starts before the yarn before it has ended: their nodes overlap.
+    #[error(
+        "yarn {yarn} starts at node {start}, inside the yarn before it, which ends at node {expected}; \
+         yarns must not overlap"
+    )]
+    YarnOverlap {
+        /// The offending yarn.
+        yarn: usize,
+        /// Its first node.
+        start: usize,
+        /// Where it should start: one past the last node of the yarn before.
+        expected: usize,
+    },
+    /// A yarn with too few nodes: an open yarn needs one, a closed one three.
+    #[error(
+        "yarn {yarn} has {nodes} nodes; a{} yarn needs at least {min}",
+        if *closed { " closed" } else { "n open" }
+    )]
+    ShortYarn {
+        /// The offending yarn.
+        yarn: usize,
+        /// Its nodes (zero when it ends before it starts).
+        nodes: usize,
+        /// Whether it is closed.
+        closed: bool,
+        /// The fewest it may have.
+        min: usize,
+    },
+    /// A yarn ends past the last node.
+    #[error("yarn {yarn} ends at node {end}, but only nodes 0..{nodes} exist")]
+    YarnPastEnd {
+        /// The offending yarn.
+        yarn: usize,
+        /// One past its last node.
+        end: usize,
+        /// Number of nodes.
+        nodes: usize,
+    },
+    /// The yarns end before the last node: the nodes after belong to none.
+    #[error("the yarns end at node {end}, but the fabric has {nodes} nodes; the last yarn must end at {nodes}")]
+    YarnsEndEarly {
+        /// One past the last yarn's last node.
+        end: usize,
+        /// Number of nodes.
+        nodes: usize,
     },
     /// A contact refers to a node that does not exist.
     #[error("contact {contact} refers to node {node}, but only nodes 0..{nodes} exist")]

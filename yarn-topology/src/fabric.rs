@@ -1,6 +1,11 @@
-//! The `Fabric`: one open yarn polyline with its element tables and rest
-//! values (SPEC §2). A fabric is valid by construction: both constructors
-//! check every index and coordinate, so downstream crates index freely.
+//! The `Fabric`: yarns of nodes with their element tables and rest values
+//! (SPEC §2). A fabric holds one or more yarns ([`YarnSpan`]), each a
+//! contiguous run of nodes in node order, open or closed; springs and
+//! bending joints follow each yarn and never join two. A fabric is valid by
+//! construction: both constructors check every index and coordinate, so
+//! downstream crates index freely.
+
+use std::ops::Range;
 
 use crate::{TopologyError, Vec3};
 
@@ -9,23 +14,162 @@ use crate::{TopologyError, Vec3};
 /// refused rather than half-allocated.
 pub(crate) const MAX_NODES: usize = 1 << 27;
 
-/// A stretch spring between consecutive nodes `a` and `a + 1`.
+/// A stretch spring along one segment of a yarn, from node `a` to the next
+/// node of its yarn, `b`: `a + 1`, or for a closed yarn's closing segment
+/// the yarn's first node. A segment is named by its first node `a`, since
+/// every node starts at most one.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Spring {
-    /// First node; the second is `a + 1`.
+    /// First node.
     pub a: u32,
+    /// Second node: the node after `a` along its yarn.
+    pub b: u32,
     /// Rest length ℓ0: the assembled segment length.
     pub rest_length: f64,
 }
 
-/// A bending triple `(b - 1, b, b + 1)` centred on node `b`.
+/// A bending triple `(a, b, c)` of one yarn, centred on node `b`: `a` is
+/// the node before `b` along its yarn and `c` the node after it, which wrap
+/// around at the ends of a closed yarn (`(last, first, first + 1)` and
+/// `(last − 1, last, first)`). A joint is named by its centre `b`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Triple {
-    /// Centre node; the neighbours are `b - 1` and `b + 1`.
+    /// The node before the centre.
+    pub a: u32,
+    /// Centre node.
     pub b: u32,
+    /// The node after the centre.
+    pub c: u32,
     /// Rest turning angle θ0 in radians: the assembled angle between the two
     /// segments (0 for a straight joint).
     pub rest_angle: f64,
+}
+
+/// One yarn of a fabric: the contiguous run of nodes `start..end`, in node
+/// order, open (two free ends) or closed (a loop: its last node joins its
+/// first with a spring, and its joints wrap around).
+///
+/// ```
+/// use yarn_topology::YarnSpan;
+///
+/// let ring = YarnSpan::closed(4..8);
+/// assert_eq!((ring.next(7), ring.prev(4), ring.segments()), (Some(4), Some(7), 4));
+/// let strand = YarnSpan::open(0..4);
+/// assert_eq!((strand.next(3), strand.prev(0), strand.segments()), (None, None, 3));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct YarnSpan {
+    /// The yarn's first node.
+    pub start: u32,
+    /// One past its last node.
+    pub end: u32,
+    /// Whether the yarn is a closed loop.
+    pub closed: bool,
+}
+
+impl YarnSpan {
+    /// An open yarn over `nodes`.
+    pub fn open(nodes: Range<u32>) -> Self {
+        Self { start: nodes.start, end: nodes.end, closed: false }
+    }
+
+    /// A closed yarn over `nodes`: its last node joins its first.
+    pub fn closed(nodes: Range<u32>) -> Self {
+        Self { start: nodes.start, end: nodes.end, closed: true }
+    }
+
+    /// The yarn's nodes.
+    pub fn nodes(&self) -> Range<usize> {
+        self.start as usize..self.end as usize
+    }
+
+    /// Number of nodes (zero for a span that ends before it starts).
+    pub fn len(&self) -> usize {
+        self.end.saturating_sub(self.start) as usize
+    }
+
+    /// Whether the span holds no node (never so in a [`Fabric`]).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The fewest nodes a yarn may have: 1 open, 3 closed (a closed yarn
+    /// of two nodes would have two springs on one pair and no joint angle).
+    pub fn min_len(closed: bool) -> usize {
+        if closed { 3 } else { 1 }
+    }
+
+    /// Whether `node` is one of the yarn's nodes.
+    pub fn contains(&self, node: u32) -> bool {
+        (self.start..self.end).contains(&node)
+    }
+
+    /// Its segments (springs): one fewer than its nodes when open, as many
+    /// when closed.
+    pub fn segments(&self) -> usize {
+        if self.closed { self.len() } else { self.len().saturating_sub(1) }
+    }
+
+    /// The node after `node` along the yarn: `node + 1`, the first node
+    /// after the last of a closed yarn, or `None` at an open yarn's end
+    /// (and for a node not in the yarn).
+    pub fn next(&self, node: u32) -> Option<u32> {
+        if !self.contains(node) {
+            None
+        } else if node + 1 < self.end {
+            Some(node + 1)
+        } else {
+            self.closed.then_some(self.start)
+        }
+    }
+
+    /// The node before `node` along the yarn: `node − 1`, the last node
+    /// before the first of a closed yarn, or `None` at an open yarn's start
+    /// (and for a node not in the yarn).
+    pub fn prev(&self, node: u32) -> Option<u32> {
+        if !self.contains(node) {
+            None
+        } else if node > self.start {
+            Some(node - 1)
+        } else {
+            self.closed.then(|| self.end - 1)
+        }
+    }
+}
+
+/// A node's neighbours along its yarn: the node before it and the node
+/// after it, either missing at an open yarn's ends. Held as two `u32` with
+/// [`Link::NONE`] for a missing one, the layout backends upload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Link {
+    prev: u32,
+    next: u32,
+}
+
+impl Link {
+    /// The stored value of a missing neighbour: no node has this index
+    /// (a fabric holds fewer than 2^27 nodes).
+    pub const NONE: u32 = u32::MAX;
+
+    /// A link to `prev` and `next`.
+    pub fn new(prev: Option<u32>, next: Option<u32>) -> Self {
+        Self { prev: prev.unwrap_or(Self::NONE), next: next.unwrap_or(Self::NONE) }
+    }
+
+    /// The node before, along the yarn.
+    pub fn prev(self) -> Option<u32> {
+        (self.prev != Self::NONE).then_some(self.prev)
+    }
+
+    /// The node after, along the yarn.
+    pub fn next(self) -> Option<u32> {
+        (self.next != Self::NONE).then_some(self.next)
+    }
+
+    /// `[prev, next]` as stored, [`Link::NONE`] for a missing one.
+    pub fn raw(self) -> [u32; 2] {
+        [self.prev, self.next]
+    }
 }
 
 /// A persistent contact between two nodes of different yarn passes.
@@ -119,13 +263,16 @@ impl Boundary {
 
 /// The parts a user supplies to build a fabric without a chart.
 ///
-/// Springs and bending triples follow from the node order (one open
-/// polyline), and rest values from the given positions, exactly as for a
-/// generated fabric.
+/// Springs and bending triples follow from the node order along each yarn
+/// ([`FabricParts::yarns`]; by default one open yarn over every node), and
+/// rest values from the given positions, exactly as for a generated fabric.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct FabricParts {
-    /// Node positions along the yarn.
+    /// Node positions, yarn after yarn, each yarn's in order along it.
     pub positions: Vec<Vec3>,
+    /// The yarns, in node order, covering every node without gaps or
+    /// overlaps; empty means one open yarn over all the nodes.
+    pub yarns: Vec<YarnSpan>,
     /// Contact node pairs. Rest separations are the given distances,
     /// floored at twice `yarn_radius`.
     pub contacts: Vec<[u32; 2]>,
@@ -141,11 +288,12 @@ pub struct FabricParts {
     pub wale: Option<Vec3>,
 }
 
-/// One open yarn polyline with its springs, bending triples, persistent
+/// Yarns of nodes with their springs, bending triples, persistent
 /// contacts, pins, boundary sides and fabric directions.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fabric {
     positions: Vec<Vec3>,
+    yarns: Vec<YarnSpan>,
     springs: Vec<Spring>,
     triples: Vec<Triple>,
     contacts: Vec<Contact>,
@@ -165,7 +313,7 @@ impl Fabric {
     /// offending node, segment, contact or pin.
     ///
     /// ```
-    /// use yarn_topology::{Fabric, FabricParts, Vec3, TopologyError};
+    /// use yarn_topology::{Fabric, FabricParts, Vec3, TopologyError, YarnSpan};
     ///
     /// let parts = FabricParts {
     ///     positions: vec![Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0)],
@@ -175,12 +323,17 @@ impl Fabric {
     /// let fabric = Fabric::from_parts(parts.clone())?;
     /// assert_eq!(fabric.springs().len(), 2);
     ///
-    /// let bad = FabricParts { contacts: vec![[1, 1]], ..parts };
+    /// let bad = FabricParts { contacts: vec![[1, 1]], ..parts.clone() };
     /// assert_eq!(Fabric::from_parts(bad), Err(TopologyError::SelfContact { contact: 0, node: 1 }));
+    ///
+    /// // The same three nodes as a closed ring: a third spring joins node 2
+    /// // back to node 0, and every node is a joint.
+    /// let ring = Fabric::from_parts(FabricParts { yarns: vec![YarnSpan::closed(0..3)], ..parts })?;
+    /// assert_eq!((ring.springs().len(), ring.triples().len()), (3, 3));
     /// # Ok::<(), TopologyError>(())
     /// ```
     pub fn from_parts(parts: FabricParts) -> Result<Self, TopologyError> {
-        let FabricParts { positions, contacts, pins, boundary, yarn_radius, course, wale } = parts;
+        let FabricParts { positions, yarns, contacts, pins, boundary, yarn_radius, course, wale } = parts;
         let n = positions.len();
         if n == 0 {
             return Err(TopologyError::NoNodes);
@@ -222,22 +375,42 @@ impl Fabric {
         };
         let course = direction("course", course.unwrap_or(Vec3::x()))?;
         let wale = direction("wale", wale.unwrap_or(Vec3::y()))?;
+        let yarns = if yarns.is_empty() {
+            vec![YarnSpan::open(0..n as u32)]
+        } else {
+            validate_yarns(&yarns, n)?;
+            yarns
+        };
 
-        let springs = (0..n.saturating_sub(1))
-            .map(|i| {
-                let rest_length = (positions[i + 1] - positions[i]).norm();
+        // In node order, so spring and joint tables are sorted by first node
+        // and by centre: for one open yarn, spring i is (i, i + 1) and
+        // triple i is centred on i + 1.
+        let springs = yarns
+            .iter()
+            .flat_map(|yarn| yarn.nodes().filter_map(|a| yarn.next(a as u32).map(|b| (a as u32, b))))
+            .map(|(a, b)| {
+                let rest_length = (positions[b as usize] - positions[a as usize]).norm();
                 // Catches exact duplicates and lengths that would overflow 1/ℓ.
                 if rest_length > f64::MIN_POSITIVE && rest_length.is_finite() {
-                    Ok(Spring { a: i as u32, rest_length })
+                    Ok(Spring { a, b, rest_length })
                 } else {
-                    Err(TopologyError::ZeroLengthSegment { segment: i })
+                    Err(TopologyError::ZeroLengthSegment { segment: a as usize, next: b as usize })
                 }
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let triples = (1..n.saturating_sub(1))
-            .map(|b| Triple {
-                b: b as u32,
-                rest_angle: turning_angle(positions[b - 1], positions[b], positions[b + 1]),
+        let triples = yarns
+            .iter()
+            .flat_map(|yarn| {
+                yarn.nodes().filter_map(|b| {
+                    let b = b as u32;
+                    Some((yarn.prev(b)?, b, yarn.next(b)?))
+                })
+            })
+            .map(|(a, b, c)| Triple {
+                a,
+                b,
+                c,
+                rest_angle: turning_angle(positions[a as usize], positions[b as usize], positions[c as usize]),
             })
             .collect();
         let floor = 2.0 * yarn_radius;
@@ -246,7 +419,7 @@ impl Fabric {
             .map(|(a, b)| Contact { a, b, rest: (positions[b as usize] - positions[a as usize]).norm().max(floor) })
             .collect();
 
-        Ok(Self { positions, springs, triples, contacts, pins, boundary, yarn_radius, course, wale, grid: None })
+        Ok(Self { positions, yarns, springs, triples, contacts, pins, boundary, yarn_radius, course, wale, grid: None })
     }
 
     /// Assemble a fabric from already-checked generator output.
@@ -266,12 +439,30 @@ impl Fabric {
         &self.positions
     }
 
-    /// The N − 1 stretch springs, one per segment.
+    /// The yarns, in node order, covering every node: one open yarn over
+    /// all of them unless the parts said otherwise.
+    pub fn yarns(&self) -> &[YarnSpan] {
+        &self.yarns
+    }
+
+    /// Each node's neighbours along its yarn, in node order.
+    pub fn links(&self) -> Vec<Link> {
+        let mut links = Vec::with_capacity(self.positions.len());
+        for yarn in &self.yarns {
+            links.extend(yarn.nodes().map(|i| Link::new(yarn.prev(i as u32), yarn.next(i as u32))));
+        }
+        links
+    }
+
+    /// The stretch springs, one per segment, sorted by first node: N − 1
+    /// for one open yarn; N less the number of open yarns in general.
     pub fn springs(&self) -> &[Spring] {
         &self.springs
     }
 
-    /// The N − 2 bending triples, one per interior node.
+    /// The bending triples, one per node with a neighbour on both sides,
+    /// sorted by centre: N − 2 for one open yarn; N less twice the number
+    /// of open yarns of two or more nodes, less those of one, in general.
     pub fn triples(&self) -> &[Triple] {
         &self.triples
     }
@@ -344,6 +535,38 @@ pub fn validate_pins(pins: &[Pin], nodes: usize) -> Result<(), TopologyError> {
     Ok(())
 }
 
+/// Check that `yarns` cover nodes `0..nodes` in order, each long enough
+/// ([`YarnSpan::min_len`]), without gaps or overlaps.
+///
+/// # Errors
+/// [`TopologyError::YarnGap`], [`TopologyError::YarnOverlap`],
+/// [`TopologyError::ShortYarn`], [`TopologyError::YarnPastEnd`] or
+/// [`TopologyError::YarnsEndEarly`], naming the first offending yarn.
+pub fn validate_yarns(yarns: &[YarnSpan], nodes: usize) -> Result<(), TopologyError> {
+    let mut expected = 0usize;
+    for (yarn, span) in yarns.iter().enumerate() {
+        let start = span.start as usize;
+        if start > expected {
+            return Err(TopologyError::YarnGap { yarn, start, expected });
+        }
+        if start < expected {
+            return Err(TopologyError::YarnOverlap { yarn, start, expected });
+        }
+        let min = YarnSpan::min_len(span.closed);
+        if span.len() < min {
+            return Err(TopologyError::ShortYarn { yarn, nodes: span.len(), closed: span.closed, min });
+        }
+        if span.end as usize > nodes {
+            return Err(TopologyError::YarnPastEnd { yarn, end: span.end as usize, nodes });
+        }
+        expected = span.end as usize;
+    }
+    if expected < nodes {
+        return Err(TopologyError::YarnsEndEarly { end: expected, nodes });
+    }
+    Ok(())
+}
+
 const DEFAULT_RADIUS: f64 = 0.9;
 
 fn direction(name: &'static str, v: Vec3) -> Result<Vec3, TopologyError> {
@@ -393,7 +616,7 @@ mod tests {
         assert!(matches!(Fabric::from_parts(p), Err(TopologyError::NonFinitePosition { node: 2, axis: 1, .. })));
         let mut p = parts(4);
         p.positions[3] = p.positions[2];
-        assert_eq!(Fabric::from_parts(p), Err(TopologyError::ZeroLengthSegment { segment: 2 }));
+        assert_eq!(Fabric::from_parts(p), Err(TopologyError::ZeroLengthSegment { segment: 2, next: 3 }));
         let p = FabricParts { contacts: vec![[0, 2], [1, 9]], ..parts(4) };
         assert_eq!(Fabric::from_parts(p), Err(TopologyError::ContactOutOfRange { contact: 1, node: 9, nodes: 4 }));
         let p = FabricParts { contacts: vec![[2, 2]], ..parts(4) };
@@ -408,6 +631,133 @@ mod tests {
         assert!(matches!(Fabric::from_parts(p), Err(TopologyError::BadDirection { name: "course", .. })));
         let p = FabricParts { yarn_radius: Some(-1.0), ..parts(4) };
         assert!(matches!(Fabric::from_parts(p), Err(TopologyError::BadGeometry { name: "yarn_radius", .. })));
+    }
+
+    /// An open yarn 0..4, a closed ring 4..9 and a lone node 9: springs and
+    /// joints follow each yarn, the ring's wrap around, and nothing joins
+    /// two yarns.
+    #[test]
+    fn several_yarns_never_share_a_spring_or_joint() {
+        let yarns = vec![YarnSpan::open(0..4), YarnSpan::closed(4..9), YarnSpan::open(9..10)];
+        let f = Fabric::from_parts(FabricParts { yarns: yarns.clone(), contacts: vec![[3, 4], [8, 9]], ..parts(10) })
+            .unwrap();
+        assert_eq!(f.yarns(), yarns.as_slice());
+        let springs: Vec<(u32, u32)> = f.springs().iter().map(|s| (s.a, s.b)).collect();
+        assert_eq!(springs, [(0, 1), (1, 2), (2, 3), (4, 5), (5, 6), (6, 7), (7, 8), (8, 4)]);
+        let closing = f.springs()[7];
+        assert!((closing.rest_length - (f.positions()[4] - f.positions()[8]).norm()).abs() < 1e-12);
+        let triples: Vec<(u32, u32, u32)> = f.triples().iter().map(|t| (t.a, t.b, t.c)).collect();
+        assert_eq!(triples, [(0, 1, 2), (1, 2, 3), (8, 4, 5), (4, 5, 6), (5, 6, 7), (6, 7, 8), (7, 8, 4)]);
+        let wrapped = f.triples()[2];
+        let x = f.positions();
+        assert!((wrapped.rest_angle - turning_angle(x[8], x[4], x[5])).abs() < 1e-15);
+        let links = f.links();
+        assert_eq!((links[0].prev(), links[3].next()), (None, None), "the open yarn's ends");
+        assert_eq!((links[4].prev(), links[8].next()), (Some(8), Some(4)), "the ring wraps");
+        assert_eq!((links[9].prev(), links[9].next()), (None, None), "a lone node has no neighbour");
+        assert_eq!(f.contacts().len(), 2, "contacts may join any nodes");
+    }
+
+    /// Parts that name no yarns are one open yarn over every node, the
+    /// same fabric as naming it.
+    #[test]
+    fn no_yarns_means_one_open_yarn() {
+        let default = Fabric::from_parts(parts(5)).unwrap();
+        assert_eq!(default.yarns(), [YarnSpan::open(0..5)]);
+        let named = Fabric::from_parts(FabricParts { yarns: vec![YarnSpan::open(0..5)], ..parts(5) }).unwrap();
+        assert_eq!(named, default);
+        assert!(default.springs().iter().enumerate().all(|(i, s)| s.a as usize == i && s.b as usize == i + 1));
+        assert!(default.triples().iter().enumerate().all(|(i, t)| t.b as usize == i + 1 && t.a + 2 == t.c));
+    }
+
+    #[test]
+    fn each_bad_yarn_list_has_its_own_error() {
+        let with = |yarns: Vec<YarnSpan>| Fabric::from_parts(FabricParts { yarns, ..parts(6) });
+        assert_eq!(with(vec![YarnSpan::open(1..6)]), Err(TopologyError::YarnGap { yarn: 0, start: 1, expected: 0 }));
+        assert_eq!(
+            with(vec![YarnSpan::open(0..3), YarnSpan::open(4..6)]),
+            Err(TopologyError::YarnGap { yarn: 1, start: 4, expected: 3 })
+        );
+        assert_eq!(
+            with(vec![YarnSpan::open(0..3), YarnSpan::open(2..6)]),
+            Err(TopologyError::YarnOverlap { yarn: 1, start: 2, expected: 3 })
+        );
+        assert_eq!(
+            with(vec![YarnSpan::open(0..3), YarnSpan::open(3..3), YarnSpan::open(3..6)]),
+            Err(TopologyError::ShortYarn { yarn: 1, nodes: 0, closed: false, min: 1 })
+        );
+        assert_eq!(
+            with(vec![YarnSpan::open(0..4), YarnSpan::closed(4..6)]),
+            Err(TopologyError::ShortYarn { yarn: 1, nodes: 2, closed: true, min: 3 })
+        );
+        assert_eq!(
+            with(vec![YarnSpan { start: 0, end: 0, closed: false }, YarnSpan::open(0..6)]),
+            Err(TopologyError::ShortYarn { yarn: 0, nodes: 0, closed: false, min: 1 })
+        );
+        assert_eq!(
+            with(vec![YarnSpan { start: 3, end: 1, closed: true }]),
+            Err(TopologyError::YarnGap { yarn: 0, start: 3, expected: 0 })
+        );
+        assert_eq!(
+            with(vec![YarnSpan::open(0..2), YarnSpan { start: 2, end: 1, closed: false }]),
+            Err(TopologyError::ShortYarn { yarn: 1, nodes: 0, closed: false, min: 1 })
+        );
+        assert_eq!(with(vec![YarnSpan::open(0..7)]), Err(TopologyError::YarnPastEnd { yarn: 0, end: 7, nodes: 6 }));
+        assert_eq!(
+            with(vec![YarnSpan::open(0..2), YarnSpan::closed(2..5)]),
+            Err(TopologyError::YarnsEndEarly { end: 5, nodes: 6 })
+        );
+        // The closing segment of a ring whose last node sits on its first.
+        let mut p = FabricParts { yarns: vec![YarnSpan::open(0..2), YarnSpan::closed(2..6)], ..parts(6) };
+        p.positions[5] = p.positions[2];
+        assert_eq!(Fabric::from_parts(p.clone()), Err(TopologyError::ZeroLengthSegment { segment: 5, next: 2 }));
+        let message = TopologyError::ZeroLengthSegment { segment: 5, next: 2 }.to_string();
+        assert!(message.contains("nodes 5 and 2"), "{message}");
+        // Between two yarns nodes may coincide: no segment joins them.
+        p.positions[5] = Vec3::new(9.0, 9.0, 9.0);
+        p.positions[2] = p.positions[1];
+        assert!(Fabric::from_parts(p).is_ok(), "a yarn may start where the last one ended");
+        let message = TopologyError::ShortYarn { yarn: 2, nodes: 2, closed: true, min: 3 }.to_string();
+        assert!(message.contains("yarn 2") && message.contains("closed") && message.contains('3'), "{message}");
+    }
+
+    proptest::proptest! {
+        /// Any partition of the nodes into yarns, open or closed, builds a
+        /// fabric whose counts follow the yarns, whose springs and joints
+        /// each lie within one yarn along it, and whose links agree with
+        /// them.
+        #[test]
+        fn springs_and_joints_follow_any_yarns(
+            lengths in proptest::collection::vec((1usize..7, proptest::bool::ANY), 1..6),
+        ) {
+            let mut yarns = Vec::new();
+            for (len, closed) in lengths {
+                let start = yarns.last().map_or(0, |y: &YarnSpan| y.end);
+                let closed = closed && len >= 3;
+                yarns.push(YarnSpan { start, end: start + len as u32, closed });
+            }
+            let n = yarns.last().map_or(0, |y| y.end as usize);
+            // A helix: no two nodes coincide, so no segment is zero.
+            let positions = (0..n).map(|i| Vec3::new((i as f64).cos(), (i as f64).sin(), 0.3 * i as f64)).collect();
+            let f = Fabric::from_parts(FabricParts { positions, yarns: yarns.clone(), ..FabricParts::default() }).unwrap();
+            let springs: usize = yarns.iter().map(YarnSpan::segments).sum();
+            let joints: usize = yarns.iter().map(|y| if y.closed { y.len() } else { y.len().saturating_sub(2) }).sum();
+            proptest::prop_assert_eq!(f.springs().len(), springs);
+            proptest::prop_assert_eq!(f.triples().len(), joints);
+            let yarn_of = |node: u32| yarns.iter().position(|y| y.contains(node));
+            let links = f.links();
+            for s in f.springs() {
+                proptest::prop_assert_eq!(yarn_of(s.a), yarn_of(s.b));
+                proptest::prop_assert_eq!(links[s.a as usize].next(), Some(s.b));
+                proptest::prop_assert_eq!(links[s.b as usize].prev(), Some(s.a));
+            }
+            for t in f.triples() {
+                proptest::prop_assert!(yarn_of(t.a) == yarn_of(t.b) && yarn_of(t.b) == yarn_of(t.c));
+                proptest::prop_assert_eq!(links[t.b as usize].raw(), [t.a, t.c]);
+            }
+            proptest::prop_assert!(f.springs().windows(2).all(|w| w[0].a < w[1].a));
+            proptest::prop_assert!(f.triples().windows(2).all(|w| w[0].b < w[1].b));
+        }
     }
 
     #[test]

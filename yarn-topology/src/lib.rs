@@ -5,7 +5,10 @@
 //! polyline of yarn nodes with its stretch springs, bending triples,
 //! persistent contacts, boundary edge families and the course and wale
 //! directions (SPEC §2). A fabric can also be built from user parts with
-//! [`Fabric::from_parts`], which validates every index and coordinate.
+//! [`Fabric::from_parts`], which validates every index and coordinate;
+//! such a fabric may hold several yarns ([`YarnSpan`]), each a contiguous
+//! run of nodes, open or closed, whose springs and joints never join two
+//! yarns.
 //!
 //! It must not know about forces, parameters or backends: those live in
 //! `yarn-model` and below.
@@ -30,7 +33,9 @@ mod stockinette;
 
 pub use chart::{Chart, StitchKind};
 pub use error::TopologyError;
-pub use fabric::{Boundary, Contact, Fabric, FabricParts, Pin, Side, Spring, Triple, validate_pins};
+pub use fabric::{
+    Boundary, Contact, Fabric, FabricParts, Link, Pin, Side, Spring, Triple, YarnSpan, validate_pins, validate_yarns,
+};
 pub use memory::{available_memory, check_memory, limit_memory};
 pub use stockinette::{Geometry, SEG};
 

@@ -458,7 +458,7 @@ fn load(backend: &mut Wgpu, renderer: &Renderer, settings: &Settings) -> Result<
     let fabric = Fabric::from_chart(&Chart::stockinette(settings.width, settings.height)?, &Geometry::default())?;
     backend.load(&fabric, &settings.params)?;
     let rest: Vec<[f32; 3]> = fabric.positions().iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
-    let yarn = renderer.yarn(&rest, fabric.yarn_radius() as f32)?;
+    let yarn = renderer.yarn(&rest, fabric.yarns(), fabric.yarn_radius() as f32)?;
     Ok((fabric, yarn))
 }
 

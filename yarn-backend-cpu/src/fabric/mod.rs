@@ -4,10 +4,12 @@
 //!
 //! Its rooms: `field.rs` (the storage layout), `contacts.rs` (the live
 //! contact lists), `sleep.rs` (which blocks sleep), `passes.rs` (the
-//! substep's passes and their arithmetic) and `rollback.rs` (putting a
-//! failed advance back). This file ties them together and owns the order
+//! substep's passes and their arithmetic), `chain.rs` (where yarns end or
+//! wrap, and the force there) and `rollback.rs` (putting a failed advance
+//! back). This file ties them together and owns the order
 //! of a substep's bookkeeping around the passes.
 
+mod chain;
 mod contacts;
 mod field;
 mod passes;
@@ -40,8 +42,12 @@ pub(crate) struct CpuFabric<T: Real> {
     /// Without friction, the forces and the move share a pass, which writes
     /// the new positions here while other blocks still read the old ones.
     next_positions: Field<T>,
-    /// κθ0 of every joint, refreshed with the parameters.
+    /// κθ0 of the joint centred on each node (zero where none), refreshed
+    /// with the parameters.
     target: Vec<T>,
+    /// The nodes the block pass computes from their links
+    /// ([`chain::breaks`]), ascending.
+    breaks: Vec<u32>,
     contacts: LiveContacts<T>,
     sleep: Sleep,
     /// One scratch per thread that may run blocks, by rayon thread index;
@@ -71,6 +77,7 @@ impl<T: Real> CpuFabric<T> {
             velocities: Field::from_vectors(&state.velocities),
             next_positions: Field::zeros(n),
             target: Vec::new(),
+            breaks: chain::breaks(&model),
             contacts: LiveContacts::default(),
             sleep: Sleep::new(&model),
             scratch: (0..threads.max(1)).map(|_| Mutex::new(Scratch::new())).collect(),
@@ -99,7 +106,7 @@ impl<T: Real> CpuFabric<T> {
 
     fn refresh_targets(&mut self) {
         let kappa = self.model.coeffs().rest_curl;
-        self.target = self.model.rest_angle().iter().map(|&theta0| kappa * theta0).collect();
+        self.target = self.model.joint_rest().iter().map(|&theta0| kappa * theta0).collect();
     }
 
     pub(crate) fn set_params(&mut self, params: &Params) -> Result<(), BackendError> {

@@ -13,7 +13,10 @@
 //!    (through the per-node contact lists, in contact order), and the
 //!    damped velocity update, whose divergence test is fused in. The two
 //!    segments and joints a block shares with each neighbour are computed
-//!    by both, so blocks never wait on each other;
+//!    by both, so blocks never wait on each other. The loops take a node's
+//!    neighbours along the yarn to be the nodes beside it; the few nodes
+//!    next to where a yarn ends and another begins, or where a closed yarn
+//!    wraps, are then recomputed from their links (`chain.rs`);
 //! 3. *friction*: the Jacobi change of every compressed live contact;
 //! 4. *move*, per block: each node sums its contacts' friction changes and
 //!    moves;
@@ -249,6 +252,10 @@ impl<T: Real> CpuFabric<T> {
         sum(&mut force.x, &s.x, &fa.x, &fc.x, g.x);
         sum(&mut force.y, &s.y, &fa.y, &fc.y, g.y);
         sum(&mut force.z, &s.z, &fa.z, &fc.z, g.z);
+        // Where the loops above took a neighbour across a yarn's break.
+        for &i in self.breaks_in(lo, hi) {
+            force.set(i as usize - lo, self.chain_force(i as usize));
+        }
         for group in self.contacts.groups(block) {
             let i = group[0].node as usize - lo;
             let f = group.iter().fold(force.get(i), |f, e| f + self.contacts.force.get(e.contact as usize) * e.sign);
@@ -273,7 +280,7 @@ impl<T: Real> CpuFabric<T> {
         let (base, m) = (lo + first - 2, last - first);
         let x = &self.positions;
         let (px, py, pz) = (&x.x[base..=base + m], &x.y[base..=base + m], &x.z[base..=base + m]);
-        let rest = &self.model.spring_rest()[base..base + m];
+        let rest = &self.model.segment_rest()[base..base + m];
         let (tx, ty, tz) = (&mut t.x[first..last], &mut t.y[first..last], &mut t.z[first..last]);
         let (fx, fy, fz) = (&mut f.x[first..last], &mut f.y[first..last], &mut f.z[first..last]);
         let il = &mut inv_length[first..last];
@@ -310,7 +317,8 @@ impl<T: Real> CpuFabric<T> {
             fc.set(k, V3::zeros());
         }
         let m = last - first;
-        let target = &self.target[lo + first - 2..lo + last - 2];
+        // `target` is by centre node, local k's is lo + k − 1.
+        let target = &self.target[lo + first - 1..lo + last - 1];
         let (ux, uy, uz) = (&t.x[first..=last], &t.y[first..=last], &t.z[first..=last]);
         let il = &inv_length[first..=last];
         let (fax, fay, faz) = (&mut fa.x[first..last], &mut fa.y[first..last], &mut fa.z[first..last]);

@@ -126,8 +126,8 @@ fn neighbours<T: Real>(model: &Model<T>, blocks: usize) -> Vec<Vec<u32>> {
             out[b].push(a as u32);
         }
     };
-    for block in 1..blocks {
-        link(block - 1, block);
+    for (a, b, _) in model.springs() {
+        link(a / BLOCK, b / BLOCK);
     }
     for c in model.contacts() {
         link(c.a as usize / BLOCK, c.b as usize / BLOCK);
