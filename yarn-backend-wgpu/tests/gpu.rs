@@ -259,3 +259,59 @@ fn timed_advance_matches_advance_and_names_every_pass() {
         }
     }
 }
+
+/// The chain record's links, in both modes: a ring of 300 nodes (its wrap
+/// from node 299 back to node 0 crossing workgroups of 128) then two open
+/// yarns end to end, the second starting 0.5 from the first's end. Gather
+/// gives `Serial<f32>`'s forces bit for bit, fixed point within its
+/// quanta, and in both each yarn's nodes feel exactly what the yarn alone
+/// gives them: no segment or joint reaches across a break.
+#[test]
+fn segments_and_joints_follow_the_yarns_on_the_gpu() {
+    use yarn_topology::{FabricParts, Vec3, YarnSpan};
+    let Some(gpu) = gpu() else { return };
+    let ring: Vec<Vec3> = (0..300)
+        .map(|i| std::f64::consts::TAU * f64::from(i) / 300.0)
+        .map(|t| Vec3::new(30.0 * t.cos(), 30.0 * t.sin(), 1.5 * (7.0 * t).sin()))
+        .collect();
+    let wave = |from: f64, n: usize| -> Vec<Vec3> {
+        (0..n).map(|i| Vec3::new(from + i as f64, 40.0 + (0.3 * i as f64).sin(), 0.1 * i as f64)).collect()
+    };
+    let yarns = [(ring, true), (wave(0.0, 40), false), (wave(39.5, 50), false)];
+    let fabric = |parts: &[(Vec<Vec3>, bool)]| {
+        let (mut positions, mut spans) = (Vec::new(), Vec::new());
+        for (nodes, closed) in parts {
+            let start = positions.len() as u32;
+            positions.extend(nodes);
+            spans.push(YarnSpan { start, end: positions.len() as u32, closed: *closed });
+        }
+        Fabric::from_parts(FabricParts { positions, yarns: spans, ..FabricParts::default() }).expect("valid yarns")
+    };
+    let all = fabric(&yarns);
+    let params = Params { gravity: 9.81, ..Params::default() };
+    let forces = |backend: &mut dyn Backend<Real = f32>, fabric: &Fabric| {
+        backend.load(fabric, &params).expect("load");
+        let mut state = backend.state().expect("state");
+        // Off the rest shape by where each node is, the same on its own.
+        for p in &mut state.positions {
+            *p += V3::new(0.05 * (3.0 * p.x).cos(), 0.07, -0.03 * (2.0 * p.y).sin());
+        }
+        backend.write_state(&state).expect("write");
+        backend.forces().expect("forces")
+    };
+    let serial = forces(&mut yarn_backend_cpu::Serial::<f32>::new(), &all);
+    for mode in [Mode::Gather, Mode::FixedPointAtomic] {
+        let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), mode);
+        let got = forces(&mut backend, &all);
+        if mode == Mode::Gather {
+            assert_eq!(got, serial, "gather against serial-f32");
+        } else {
+            let worst = got.iter().zip(&serial).map(|(a, b)| (a - b).norm()).fold(0.0, f32::max);
+            assert!(worst <= 16.0 * 0.5 / 4096.0 + 1e-4, "fixed point off serial-f32 by {worst}");
+        }
+        for (k, (yarn, part)) in all.yarns().iter().zip(&yarns).enumerate() {
+            let alone = forces(&mut backend, &fabric(std::slice::from_ref(part)));
+            assert_eq!(&got[yarn.nodes()], alone.as_slice(), "{mode:?}: yarn {k} feels more than itself");
+        }
+    }
+}

@@ -146,7 +146,10 @@ pub struct Model<T> {
     coeffs: Coefficients<T>,
     params: Params,
     nodes: usize,
-    /// The mean spring rest length.
+    /// The mean spring rest length, or for a fabric without springs
+    /// (every yarn a lone node) twice the yarn radius, the contacts'
+    /// floor: the length the divergence speed and the re-seat step scale
+    /// with.
     mean_rest: f64,
 }
 
@@ -195,8 +198,11 @@ impl<T: Real> Model<T> {
             coeffs: Coefficients::new(params),
             params: *params,
             nodes,
-            mean_rest: fabric.springs().iter().map(|s| s.rest_length).sum::<f64>()
-                / fabric.springs().len().max(1) as f64,
+            mean_rest: if fabric.springs().is_empty() {
+                2.0 * fabric.yarn_radius()
+            } else {
+                fabric.springs().iter().map(|s| s.rest_length).sum::<f64>() / fabric.springs().len() as f64
+            },
         };
         model.set_pins(fabric.pins())?;
         Ok(model)
@@ -302,7 +308,8 @@ impl<T: Real> Model<T> {
     }
 
     /// The speed beyond which a node has diverged: one that would cross
-    /// [`DIVERGENCE_REACH`] mean segment lengths in a single substep. No
+    /// [`DIVERGENCE_REACH`] mean segment lengths (twice the yarn radius in
+    /// a fabric of lone nodes, which has no segment) in a single substep. No
     /// physical motion of the yarn comes near it; an explicit step that
     /// produces it has blown up.
     pub fn divergence_speed(&self) -> f64 {
@@ -525,6 +532,28 @@ mod tests {
     use yarn_topology::{Chart, Geometry};
 
     use super::*;
+
+    /// A fabric of lone nodes has no segment to measure by: its divergence
+    /// speed and re-seat step scale with twice the yarn radius instead of
+    /// vanishing, so it can move at all; a fabric with segments keeps
+    /// their mean.
+    #[test]
+    fn lone_nodes_measure_by_the_yarn_radius() {
+        use yarn_topology::{FabricParts, Vec3, YarnSpan};
+        let positions = vec![Vec3::zeros(), Vec3::new(3.0, 0.0, 0.0), Vec3::new(0.0, 3.0, 0.0)];
+        let yarns = (0..3).map(|i| YarnSpan::open(i..i + 1)).collect();
+        let lone =
+            Fabric::from_parts(FabricParts { positions: positions.clone(), yarns, ..FabricParts::default() }).unwrap();
+        let params = Params::default();
+        let model = Model::<f64>::new(&lone, &params).unwrap();
+        assert_eq!(model.spring_count(), 0);
+        assert_eq!(model.divergence_speed(), DIVERGENCE_REACH * 1.8 / params.substep);
+        assert_eq!(model.reseat_step(), RESEAT_SPEED * 1.8 * params.substep);
+        let strand = Fabric::from_parts(FabricParts { positions, ..FabricParts::default() }).unwrap();
+        let model = Model::<f64>::new(&strand, &params).unwrap();
+        let mean = (3.0 + 18f64.sqrt()) / 2.0;
+        assert!((model.divergence_speed() - DIVERGENCE_REACH * mean / params.substep).abs() < 1e-9);
+    }
 
     /// Released contacts revived with one pulled 3 units apart and one
     /// pushed 0.2 units together: both are re-seated at their length and

@@ -88,9 +88,10 @@ const FRICTION: &[Stage] = &[Stage::Friction];
 const MOVE: &[Stage] = &[Stage::Move];
 const PINS: &[Stage] = &[Stage::Pins];
 
-/// Per-block working memory, one per thread that may run blocks. Segment and joint arrays are indexed from two
-/// elements before the block's first node; entries past either end of the
-/// yarn stay zero, so the per-node sum needs no branches.
+/// Per-block working memory, one per thread that may run blocks. Segment
+/// and joint arrays are indexed from two elements before the block's first
+/// node; entries past either end of the node arrays stay zero, so the
+/// per-node sum needs no branches.
 #[derive(Debug, Clone)]
 pub(crate) struct Scratch<T> {
     /// Segment unit tangent, inverse length (zero for a degenerate
@@ -263,8 +264,12 @@ impl<T: Real> CpuFabric<T> {
         }
     }
 
-    /// Segments lo−2 ..= hi (local 0 ..= len+2) of block [lo, hi): unit
-    /// tangent, inverse length, stretch force; zero past the yarn's ends.
+    /// Segments lo−2 ..= hi (local 0 ..= len+2) of block [lo, hi), each
+    /// from its node to the node after it in the arrays: unit tangent,
+    /// inverse length, stretch force; zero past the arrays' ends. Where the
+    /// node after it is not its next along the yarn (a yarn's last node),
+    /// the value is not used: the nodes that would read it are breaks
+    /// (`chain.rs`).
     fn segments(&self, lo: usize, hi: usize, scratch: &mut Scratch<T>) {
         let n = self.positions.len();
         let k_s = self.model.coeffs().stretch;
@@ -301,9 +306,11 @@ impl<T: Real> CpuFabric<T> {
         }
     }
 
-    /// Joints lo−2 .. hi (local 0 .. len+2) of block [lo, hi): bending
-    /// forces on their first and last node; zero past the yarn's ends and
-    /// where sin θ < [`MIN_SIN_THETA`] (SPEC §3).
+    /// Joints lo−2 .. hi (local 0 .. len+2) of block [lo, hi), centred on
+    /// nodes lo−1 ..= hi with the nodes beside them in the arrays: bending
+    /// forces on their first and last node; zero past the arrays' ends and
+    /// where sin θ < [`MIN_SIN_THETA`] (SPEC §3). As for the segments, a
+    /// joint that reaches across a yarn's break is read only by breaks.
     fn joints(&self, lo: usize, hi: usize, scratch: &mut Scratch<T>) {
         let n = self.positions.len();
         let k_b = self.model.coeffs().bend;
