@@ -40,14 +40,24 @@ fn scatter(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id
     let t = thread_index(group, local, groups);
     if t < p.nodes {
         let here = chain[t];
+        // t's neighbours are almost always the nodes beside it: read those
+        // at once, and a closed yarn's wrap through its links.
+        let at = x[t].xyz;
+        var before = x[max(t, 1u) - 1u].xyz;
+        var after = x[min(t + 1u, p.nodes - 1u)].xyz;
+        if here.prev != NONE && here.prev + 1u != t {
+            before = x[here.prev].xyz;
+        }
+        if here.next != NONE && here.next != t + 1u {
+            after = x[here.next].xyz;
+        }
         if here.next != NONE {
-            let f = spring_force(x[here.next].xyz - x[t].xyz, here.rest_length, p.stretch);
+            let f = spring_force(after - at, here.rest_length, p.stretch);
             add(t, f);
             add(here.next, -f);
         }
         if here.prev != NONE && here.next != NONE {
-            let joint = joint_forces(segment_of(x[t].xyz - x[here.prev].xyz), segment_of(x[here.next].xyz - x[t].xyz),
-                                     here.rest_turn, p.bend, p.min_sin);
+            let joint = joint_forces(segment_of(at - before), segment_of(after - at), here.rest_turn, p.bend, p.min_sin);
             add(here.prev, joint.first);
             add(t, -(joint.first + joint.last));
             add(here.next, joint.last);

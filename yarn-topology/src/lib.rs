@@ -22,6 +22,24 @@
 //! assert_eq!(fabric.contacts().len(), 480);
 //! # Ok::<(), yarn_topology::TopologyError>(())
 //! ```
+//!
+//! Two open yarns and a closed ring, with contacts between them:
+//!
+//! ```
+//! use yarn_topology::{Fabric, FabricParts, Vec3, YarnSpan};
+//!
+//! let positions = (0..12).map(|i| Vec3::new(f64::from(i % 6), f64::from(i / 6) * 3.0, 0.0)).collect();
+//! let ring = (0..6).map(|i| f64::from(i) * std::f64::consts::TAU / 6.0).map(|t| Vec3::new(t.cos(), 6.0 + t.sin(), 0.0));
+//! let fabric = Fabric::from_parts(FabricParts {
+//!     positions: positions.into_iter().chain(ring).collect(),
+//!     yarns: vec![YarnSpan::open(0..6), YarnSpan::open(6..12), YarnSpan::closed(12..18)],
+//!     contacts: vec![[2, 8], [11, 15]],
+//!     ..FabricParts::default()
+//! })?;
+//! assert_eq!(fabric.springs().len(), 5 + 5 + 6);
+//! assert_eq!(fabric.triples().len(), 4 + 4 + 6);
+//! # Ok::<(), yarn_topology::TopologyError>(())
+//! ```
 
 #![forbid(unsafe_code)]
 
