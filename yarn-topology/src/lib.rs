@@ -7,6 +7,12 @@
 //! directions (SPEC §2). A fabric can also be built from user parts with
 //! [`Fabric::from_parts`], which validates every index and coordinate.
 //!
+//! A chart comes from a named [`Pattern`] (stockinette, garter, ribs,
+//! seed), from [`Chart::new`], or from a plain-text chart of `k` and `p`
+//! read bottom to top ([`Chart::parse`], [`Chart::from_file`]). Every chart
+//! is the fabric as seen from its technical face; [`StitchKind`] says what
+//! knit and purl mean there.
+//!
 //! It must not know about forces, parameters or backends: those live in
 //! `yarn-model` and below.
 //!
@@ -26,12 +32,14 @@ mod chart;
 mod error;
 mod fabric;
 mod memory;
+mod pattern;
 mod stockinette;
 
 pub use chart::{Chart, StitchKind};
 pub use error::TopologyError;
 pub use fabric::{Boundary, Contact, Fabric, FabricParts, Pin, Side, Spring, Triple, validate_pins};
 pub use memory::{available_memory, check_memory, limit_memory};
+pub use pattern::Pattern;
 pub use stockinette::{Geometry, SEG};
 
 /// A 3-vector of model-unit coordinates.
