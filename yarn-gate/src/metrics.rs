@@ -6,7 +6,7 @@ use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 use yarn_model::statics::{self, StaticOptions};
 use yarn_model::{Backend, BackendError, Model, State, step, widen};
-use yarn_topology::{Fabric, Pin, SEG, Side};
+use yarn_topology::{Fabric, Pin, Side};
 
 /// One sample of a relaxation.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -123,8 +123,8 @@ pub fn curl(fabric: &Fabric, positions: &[Vector3<f64>]) -> Option<Curl> {
 /// curled edge does not shrink it: the arc length of the line through the
 /// stitch centres of the middle row (width) and of the middle column
 /// (height), from the first stitch's centre to the last's. A stitch's
-/// centre is the mean of its loop's nodes (phases 1 to SEG − 1, which
-/// every row has). At assembly these are (W − 1) and (H − 1) stitch
+/// centre is the mean of its loop's own nodes (phases 1 to
+/// `nodes_per_loop − 1`, which every row has). At assembly these are (W − 1) and (H − 1) stitch
 /// pitches.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Extent {
@@ -141,8 +141,9 @@ pub fn extent(fabric: &Fabric, positions: &[Vector3<f64>]) -> Option<Extent> {
     if w < 2 || h < 2 {
         return None;
     }
+    let per_loop = fabric.nodes_per_loop()?;
     let centre = |column: usize, row: usize| -> Option<Vector3<f64>> {
-        let nodes: Option<Vec<usize>> = (1..SEG).map(|p| fabric.stitch_node(column, row, p)).collect();
+        let nodes: Option<Vec<usize>> = (1..per_loop).map(|p| fabric.stitch_node(column, row, p)).collect();
         let nodes = nodes?;
         Some(nodes.iter().map(|&i| positions[i]).sum::<Vector3<f64>>() / nodes.len() as f64)
     };

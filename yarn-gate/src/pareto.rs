@@ -278,7 +278,7 @@ impl Problem {
             }
             Problem::Snag => {
                 let Some((w, h)) = fabric.grid() else { return Vec::new() };
-                let Some(node) = fabric.stitch_node(w / 2, h / 2, yarn_topology::SEG / 2) else { return Vec::new() };
+                let Some(node) = fabric.head_node(w / 2, h / 2) else { return Vec::new() };
                 let out = fabric.course().cross(&fabric.wale());
                 let reach = 3.0 * Geometry::default().stitch_width * ramp;
                 vec![Pin { node: node as u32, target: rest[node] + out * reach }]

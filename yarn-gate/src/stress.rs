@@ -254,7 +254,7 @@ pub fn survives<B: Backend>(
     }
     backend.write_state(&state.cast())?;
     let (w, h) = config.size;
-    let grabbed = fabric.stitch_node(w / 2, h / 2, yarn_topology::SEG / 2).unwrap_or(0);
+    let grabbed = fabric.head_node(w / 2, h / 2).unwrap_or(0);
     let out = fabric.course().cross(&fabric.wale()) * (3.0 * Geometry::default().stitch_width);
     let substeps = (config.duration / params.substep).ceil() as u64;
     const CHUNKS: u64 = 20;

@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use crate::TopologyError;
+use crate::arch::SEG;
 use crate::fabric::MAX_NODES;
-use crate::stockinette::SEG;
 
 /// The kind of one stitch cell, as seen from the technical face (+z); see
 /// [what a chart records](Chart#what-a-chart-records).

@@ -94,6 +94,31 @@ pub enum TopologyError {
         /// The rejected value.
         value: f64,
     },
+    /// The nodes per loop do not suit the loop shape.
+    #[error(
+        "geometry has {got} nodes per loop; the {shape:?} shape needs exactly 8 (Arch) or an even number of at least 10 (Interlooped)"
+    )]
+    BadNodesPerLoop {
+        /// The shape asked for.
+        shape: crate::LoopShape,
+        /// The nodes per loop asked for.
+        got: usize,
+    },
+    /// An interlooped shape whose loops do not pass through the row below.
+    #[error(
+        "the loops of adjacent rows do not cross: make loop_height larger than stitch_height and roundness at least 1 (the defaults are 9.33, 5.83 and 1.5)"
+    )]
+    NoCrossings,
+    /// A chart asks for a stitch the loop shape cannot knit.
+    #[error(
+        "the paper's arch knits only knit stitches, and stitch ({column}, {row}) is a purl; use the interlooped geometry (Geometry::default) for purl"
+    )]
+    ArchPurl {
+        /// Column of the first purl stitch.
+        column: usize,
+        /// Row of the first purl stitch.
+        row: usize,
+    },
     /// User parts with no nodes at all.
     #[error("a fabric needs at least one node")]
     NoNodes,

@@ -21,26 +21,36 @@
 //!
 //! let chart = Chart::stockinette(16, 16)?;
 //! let fabric = Fabric::from_chart(&chart, &Geometry::default())?;
-//! assert_eq!(fabric.node_count(), 2048);
-//! assert_eq!(fabric.contacts().len(), 480);
+//! // 16 rows of 16 loops of 16 nodes, a sinker node at each row's end and
+//! // two nodes in each of the 15 turns between rows.
+//! assert_eq!(fabric.node_count(), 16 * (16 * 16 + 1) + 15 * 2);
+//! // Four crossings between each stitch and the loop below it.
+//! assert_eq!(fabric.contacts().len(), 4 * 16 * 15);
+//!
+//! // The paper's arch: 8 nodes a loop, two contacts a stitch.
+//! let paper = Fabric::from_chart(&chart, &Geometry::paper())?;
+//! assert_eq!((paper.node_count(), paper.contacts().len()), (2048, 480));
 //! # Ok::<(), yarn_topology::TopologyError>(())
 //! ```
 
 #![forbid(unsafe_code)]
 
+mod arch;
 mod chart;
 mod error;
 mod fabric;
+mod geometry;
+mod loops;
 mod memory;
 mod pattern;
-mod stockinette;
 
+pub use arch::SEG;
 pub use chart::{Chart, StitchKind};
 pub use error::TopologyError;
-pub use fabric::{Boundary, Contact, Fabric, FabricParts, Pin, Side, Spring, Triple, validate_pins};
+pub use fabric::{Boundary, Contact, Fabric, FabricParts, Front, Pin, Side, Spring, Triple, validate_pins};
+pub use geometry::{Geometry, LoopShape};
 pub use memory::{available_memory, check_memory, limit_memory};
 pub use pattern::Pattern;
-pub use stockinette::{Geometry, SEG};
 
 /// A 3-vector of model-unit coordinates.
 pub type Vec3 = nalgebra::Vector3<f64>;

@@ -9,7 +9,7 @@ use serde::Serialize;
 use yarn_backend_wgpu::{Gpu, Mode, Wgpu, wgpu};
 use yarn_model::{Backend, BackendError, Params, V3};
 use yarn_render::{RenderError, Renderer, View, Yarn};
-use yarn_topology::{Chart, Fabric, Geometry, Pin, SEG, Side, TopologyError, Vec3};
+use yarn_topology::{Chart, Fabric, Geometry, Pin, Side, TopologyError, Vec3};
 
 /// The texture format [`Demo::draw`] targets when drawing offscreen (a
 /// canvas uses its own preferred format's sRGB view).
@@ -512,7 +512,7 @@ pub fn ladder_order(fabric: &Fabric, column: usize) -> Vec<usize> {
     let rows = fabric.grid().map_or(0, |(_, rows)| rows);
     (0..rows)
         .rev()
-        .filter_map(|row| fabric.stitch_node(column, row, SEG / 2))
+        .filter_map(|row| fabric.head_node(column, row))
         .flat_map(|head| {
             let head = head as u32;
             fabric.contacts().iter().enumerate().filter(move |(_, c)| c.a == head || c.b == head).map(|(i, _)| i)
@@ -560,8 +560,7 @@ mod tests {
         let order = ladder_order(&fabric, 2);
         // Two contacts clasp each head below the top row.
         assert_eq!(order.len(), 2 * 3);
-        let heads: Vec<u32> =
-            (0..3).rev().map(|row| fabric.stitch_node(2, row, SEG / 2).expect("node") as u32).collect();
+        let heads: Vec<u32> = (0..3).rev().map(|row| fabric.head_node(2, row).expect("node") as u32).collect();
         for (pair, head) in order.chunks(2).zip(&heads) {
             for &c in pair {
                 let contact = fabric.contacts()[c];
