@@ -88,7 +88,7 @@ fn rest_curl_one_reads_flat() {
         let mut backend = Serial::<f64>::new();
         backend.load(&fabric, &Params { rest_curl, ..Params::paper() }).unwrap();
         backend.advance(3000).unwrap();
-        metrics::curl(&fabric, &backend.state().unwrap().positions).unwrap()
+        metrics::curl_since_assembly(&fabric, &backend.state().unwrap().positions).unwrap()
     };
     let flat = curl_after(1.0);
     assert!(flat.total() < 1e-6, "κ = 1 curled: {flat:?}");
@@ -166,7 +166,7 @@ fn cli_bad_input_is_a_clear_error() {
 #[test]
 fn cli_bench_json_has_a_row_per_backend_and_size() {
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
-        .args(["bench", "--sizes", "2,3", "--repeats", "1", "--threads", "2", "--json"])
+        .args(["bench", "--preset", "paper", "--sizes", "2,3", "--repeats", "1", "--threads", "2", "--json"])
         .output()
         .unwrap();
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
@@ -222,7 +222,19 @@ fn cli_bench_stages_give_each_row_its_passes_by_cpu_timers() {
 #[test]
 fn cli_gpu_bench_stages_name_their_method_and_the_fused_pass() {
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
-        .args(["bench", "--backend", "wgpu,wgpu-fixed", "--sizes", "16", "--stages", "--json", "--repeats", "1"])
+        .args([
+            "bench",
+            "--preset",
+            "paper",
+            "--backend",
+            "wgpu,wgpu-fixed",
+            "--sizes",
+            "16",
+            "--stages",
+            "--json",
+            "--repeats",
+            "1",
+        ])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
@@ -250,7 +262,7 @@ fn cli_gpu_bench_stages_name_their_method_and_the_fused_pass() {
 #[test]
 fn cli_gpu_bench_prints_the_floors_per_size() {
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
-        .args(["bench", "--backend", "wgpu", "--sizes", "16", "--repeats", "1", "--json"])
+        .args(["bench", "--preset", "paper", "--backend", "wgpu", "--sizes", "16", "--repeats", "1", "--json"])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
@@ -434,7 +446,19 @@ fn cli_render_writes_a_png_and_an_obj() {
     std::fs::create_dir_all(&dir).unwrap();
     let (png, obj) = (dir.join("patch.png"), dir.join("patch.obj"));
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
-        .args(["render", "--size", "4x3", "--steps", "60", "--image", "160x120", "--backend", "serial-f32"])
+        .args([
+            "render",
+            "--preset",
+            "paper",
+            "--size",
+            "4x3",
+            "--steps",
+            "60",
+            "--image",
+            "160x120",
+            "--backend",
+            "serial-f32",
+        ])
         .arg("--out")
         .arg(&png)
         .arg("--obj")

@@ -21,9 +21,9 @@
 //!
 //! let chart = Chart::stockinette(16, 16)?;
 //! let fabric = Fabric::from_chart(&chart, &Geometry::default())?;
-//! // 16 rows of 16 loops of 16 nodes, a sinker node at each row's end and
-//! // two nodes in each of the 15 turns between rows.
-//! assert_eq!(fabric.node_count(), 16 * (16 * 16 + 1) + 15 * 2);
+//! // 16 rows of 16 loops of 24 nodes, a sinker node at each row's end and
+//! // four nodes in each of the 15 turns between rows.
+//! assert_eq!(fabric.node_count(), 16 * (16 * 24 + 1) + 15 * 4);
 //! // Four crossings between each stitch and the loop below it.
 //! assert_eq!(fabric.contacts().len(), 4 * 16 * 15);
 //!

@@ -317,7 +317,7 @@ impl Probe {
 fn figures(fabric: &Fabric, state: &State<f64>, probes: [&Hold; 2]) -> Result<Figures, GateError> {
     let (width, height) = fabric.grid().unwrap_or((0, 0));
     let too_small = GateError::TooSmall { width, height };
-    let curl = metrics::curl(fabric, &state.positions).ok_or(too_small.clone())?;
+    let curl = metrics::curl_since_assembly(fabric, &state.positions).ok_or(too_small.clone())?;
     let Extent { width, height } = metrics::extent(fabric, &state.positions).ok_or(too_small)?;
     Ok(Figures {
         curl_course: curl.course,
