@@ -28,9 +28,9 @@ const VIEWPORT = { width: 1000, height: 700 };
 const SETTINGS = ['stretch', 'bend', 'curl', 'contact', 'friction', 'damping', 'substeps', 'gravity', 'width', 'height'];
 // Every pattern, in the selector's order (yarn-topology's Pattern::ALL).
 const PATTERNS = ['stockinette', 'reverse-stockinette', 'garter', 'rib-1x1', 'rib-2x2', 'seed'];
-// Nodes in a w x h patch of the default interlooped geometry: 16 a loop,
-// the sinker closing each row, and 2 in each turn between rows.
-const nodeCount = (w, h) => h * (16 * w + 1) + 2 * (h - 1);
+// Nodes in a w x h patch of the default interlooped geometry: 24 a loop,
+// the sinker closing each row, and 4 in each turn between rows.
+const nodeCount = (w, h) => h * (24 * w + 1) + 4 * (h - 1);
 
 let server;
 let browser;

@@ -10,10 +10,10 @@ use yarn_backend_wgpu::{Gpu, testing, wgpu};
 use yarn_topology::{Fabric, Front, Pattern};
 use yarnify_web::{Demo, DemoError, OFFSCREEN_FORMAT, SETTINGS, Settings};
 
-/// Nodes in a `w` x `h` patch of the default (interlooped) geometry: 16 a
-/// loop, the sinker that closes each row, and 2 in each turn between rows.
+/// Nodes in a `w` x `h` patch of the default (interlooped) geometry: 24 a
+/// loop, the sinker that closes each row, and 4 in each turn between rows.
 fn nodes(w: usize, h: usize) -> usize {
-    h * (16 * w + 1) + 2 * (h - 1)
+    h * (24 * w + 1) + 4 * (h - 1)
 }
 
 /// Contacts in a `w` x `h` patch: the four crossings of each loop with the
