@@ -29,7 +29,7 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', default_value = "serial-f32,serial-f64,rayon")]
     backend: Vec<String>,
     /// The model: `default` (the default parameters on interlooped loops,
-    /// 16 nodes a stitch) or `paper` (the paper's parameters on its 8-node
+    /// 24 nodes a stitch) or `paper` (the paper's parameters on its 8-node
     /// arch, which knits no purl); compare the two by ns/stitch-step.
     #[arg(long, value_enum, default_value_t = Preset::Default)]
     preset: Preset,

@@ -58,6 +58,10 @@ pub struct CheckArgs {
     /// Rest-curl fraction κ; 1 gives a patch that should read flat.
     #[arg(long)]
     rest_curl: Option<f64>,
+    /// Nodes a loop of the default preset's interlooped geometry: even, at
+    /// least 10 (default 24, `Geometry::nodes_per_loop`).
+    #[arg(long)]
+    nodes_per_loop: Option<usize>,
     /// The path to rest: `static` (a frictionless quasi-static solve in
     /// f64; --backend is not used) or `dynamic` (the damped dynamics with
     /// friction on --backend, from the assembled state). Default: static,
@@ -110,7 +114,9 @@ impl CheckArgs {
         }
         let dynamic = solver == Some("dynamic") || (solver.is_none() && self.backend.is_some());
         let budget = self.steps.unwrap_or(if dynamic { DYNAMIC_BUDGET } else { STATIC_BUDGET });
-        let config = rest::RestConfig { chart, budget, params, geometry: self.preset.geometry() };
+        let mut geometry = self.preset.geometry();
+        geometry.nodes_per_loop = self.nodes_per_loop.unwrap_or(geometry.nodes_per_loop);
+        let config = rest::RestConfig { chart, budget, params, geometry };
         let report = with_bar(budget, rest::PROGRESS, "", |bar| {
             let progress = &mut phases(bar);
             if dynamic {
