@@ -11,7 +11,7 @@
 
 use std::f64::consts::PI;
 
-use crate::fabric::{Boundary, FabricParts, Grid, MAX_NODES, Side};
+use crate::fabric::{Boundary, FabricParts, Grid, MAX_NODES};
 use crate::{
     Chart, Contact, Fabric, Geometry, LoopShape, Spring, StitchKind, TopologyError, Triple, Vec3, available_memory,
     check_memory, loops,
@@ -106,18 +106,7 @@ fn arch(chart: &Chart, geometry: &Geometry) -> Result<FabricParts, TopologyError
             for s in 0..SEG {
                 positions.push(geometry.node(x0, y0, phase_of(row, s)));
             }
-            let mut sides = Boundary::INTERIOR;
-            for (on, side) in [
-                (row == 0, Side::Bottom),
-                (row + 1 == h, Side::Top),
-                (column == 0, Side::Left),
-                (column + 1 == w, Side::Right),
-            ] {
-                if on {
-                    sides = sides.with(side);
-                }
-            }
-            boundary.extend([sides; SEG]);
+            boundary.extend([Boundary::of_stitch(column, row, w, h); SEG]);
         }
     }
     let mut contacts = Vec::with_capacity(2 * w * h.saturating_sub(1));
@@ -153,6 +142,7 @@ pub(crate) fn node_index(width: usize, row: usize, column: usize, p: usize) -> u
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Side;
 
     fn patch(w: usize, h: usize) -> Fabric {
         Fabric::from_chart(&Chart::stockinette(w, h).unwrap(), &Geometry::paper()).unwrap()

@@ -109,6 +109,20 @@ impl Boundary {
         Boundary(self.0 | side.bit())
     }
 
+    /// The sides of the stitch at (`column`, `row`) in a `width` × `height`
+    /// chart.
+    pub(crate) fn of_stitch(column: usize, row: usize, width: usize, height: usize) -> Boundary {
+        [
+            (row == 0, Side::Bottom),
+            (row + 1 == height, Side::Top),
+            (column == 0, Side::Left),
+            (column + 1 == width, Side::Right),
+        ]
+        .into_iter()
+        .filter(|&(on, _)| on)
+        .fold(Boundary::INTERIOR, |sides, (_, side)| sides.with(side))
+    }
+
     /// Whether the node lies on `side`.
     pub fn on(self, side: Side) -> bool {
         self.0 & side.bit() != 0

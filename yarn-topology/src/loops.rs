@@ -273,17 +273,7 @@ pub(crate) fn build(chart: &Chart, g: &Geometry) -> Result<(FabricParts, Layout)
         for column in 0..w {
             let own = sign(column, row);
             let above = if row + 1 < h { sign(column, row + 1) } else { own };
-            let mut sides = Boundary::INTERIOR;
-            for (on, s) in [
-                (row == 0, Side::Bottom),
-                (row + 1 == h, Side::Top),
-                (column == 0, Side::Left),
-                (column + 1 == w, Side::Right),
-            ] {
-                if on {
-                    sides = sides.with(s);
-                }
-            }
+            let sides = Boundary::of_stitch(column, row, w, h);
             let last = column + 1 == w;
             let far_sinker = last.then_some(PI);
             for (p, t) in params.iter().copied().chain(far_sinker).enumerate() {
