@@ -37,7 +37,9 @@ fn temp(name: &str) -> PathBuf {
 #[test]
 fn serial_prints_the_energy_falling() {
     let out = stdout(&run("serial", &[]));
-    assert!(out.starts_with("2048 nodes, 480 contacts"), "{out}");
+    // 16x16 interlooped: 16 rows of 16 loops of 24 nodes, a far sinker a
+    // row and 4 nodes in each of 15 turns; 4 crossings a stitch above row 0.
+    assert!(out.starts_with("6220 nodes, 960 contacts"), "{out}");
     let totals: Vec<f64> =
         out.lines().filter_map(|l| l.split("total").nth(1)?.split_whitespace().next()?.parse().ok()).collect();
     assert_eq!(totals.len(), 7, "{out}");
@@ -47,7 +49,8 @@ fn serial_prints_the_energy_falling() {
 #[test]
 fn rayon_times_a_large_patch() {
     let out = stdout(&run("rayon", &[]));
-    assert!(out.contains("of 32768 nodes on") && out.contains("ns per node-substep"), "{out}");
+    // 64x64 interlooped: 64 × (64 × 24 + 1) + 63 × 4 nodes.
+    assert!(out.contains("of 98620 nodes on") && out.contains("ns per node-substep"), "{out}");
 }
 
 #[test]
@@ -76,11 +79,11 @@ fn render_writes_a_png() {
 fn drape_pins_a_row_and_writes_an_obj() {
     let path = temp("drape.obj");
     let out = stdout(&run("drape", &[path.to_str().unwrap()]));
-    assert!(out.contains("pinned 160 nodes of 2560"), "{out}");
+    assert!(out.contains("pinned 481 nodes of 7756"), "{out}");
     let drop: f64 = out.split("hangs ").nth(1).unwrap().split_whitespace().next().unwrap().parse().unwrap();
     assert!(drop > 0.0, "gravity must pull the fabric down: {out}");
     let mesh = std::fs::read_to_string(&path).unwrap();
-    assert_eq!(mesh.lines().filter(|l| l.starts_with("v ")).count(), 2560 * 7);
+    assert_eq!(mesh.lines().filter(|l| l.starts_with("v ")).count(), 7756 * 7);
     std::fs::remove_file(path).unwrap();
 }
 

@@ -243,8 +243,9 @@ mod tests {
     use yarn_model::Stage;
     use yarn_topology::{Chart, Geometry};
 
+    /// The paper's 3x3 arch: 72 nodes, as the counts below expect.
     fn patch() -> Fabric {
-        Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::default()).unwrap()
+        Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::paper()).unwrap()
     }
 
     #[test]
@@ -312,8 +313,9 @@ mod tests {
     /// grab draws its node 10 units, 11 r, out of the fabric).
     #[test]
     fn sleeping_skips_a_settled_fabric_and_wakes_for_a_grab() {
-        let fabric = Fabric::from_chart(&Chart::stockinette(64, 8).unwrap(), &Geometry::default()).unwrap();
-        let node = fabric.stitch_node(32, 4, 4).unwrap();
+        // The paper's arch: 4,096 nodes, eight blocks of 512.
+        let fabric = Fabric::from_chart(&Chart::stockinette(64, 8).unwrap(), &Geometry::paper()).unwrap();
+        let node = fabric.head_node(32, 4).unwrap();
         // A flat, strongly damped patch settles within a few hundred substeps.
         let params = Params { damping: 40.0, rest_curl: 1.0, ..Params::default() };
         let run = |sleep_speed: f64| {

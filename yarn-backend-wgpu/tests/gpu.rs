@@ -15,8 +15,9 @@ fn gpu() -> Option<Arc<Gpu>> {
     testing::shared_gpu()
 }
 
+/// The paper's 3x3 arch: 72 nodes, as the byte counts below expect.
 fn patch() -> Fabric {
-    Fabric::from_chart(&Chart::stockinette(3, 3).expect("valid size"), &Geometry::default()).expect("valid chart")
+    Fabric::from_chart(&Chart::stockinette(3, 3).expect("valid size"), &Geometry::paper()).expect("valid chart")
 }
 
 #[test]
@@ -99,7 +100,7 @@ fn lowered(full: &Gpu, lower: impl FnOnce(&mut wgpu::Limits)) -> Arc<Gpu> {
 fn a_fabric_over_the_device_limits_is_refused_by_name() {
     let Some(full) = gpu() else { return };
     let (small, large) =
-        (patch(), Fabric::from_chart(&Chart::stockinette(10, 10).unwrap(), &Geometry::default()).unwrap());
+        (patch(), Fabric::from_chart(&Chart::stockinette(10, 10).unwrap(), &Geometry::paper()).unwrap());
     // 72 nodes of 16 bytes, 1,152 bytes, in a binding of at most 1,024.
     let narrow = lowered(&full, |l| l.max_storage_buffer_binding_size = 1024);
     let mut backend = Wgpu::with_gpu(narrow, Mode::Gather);

@@ -1,6 +1,7 @@
-//! `yarn-gate bench`: cost per node per substep of each backend over square
-//! patches, as the median of repeated timed runs after a warm-up; and, with
-//! `--stages`, where a substep's time goes, pass by pass.
+//! `yarn-gate bench`: cost per node per substep, and per stitch per substep,
+//! of each backend over square patches (or one chart file), as the median
+//! of repeated timed runs after a warm-up; and, with `--stages`, where a
+//! substep's time goes, pass by pass.
 //!
 //! This module owns the command ([`BenchArgs`]), the timing and its tables.
 //! It knows backends only through [`Backend`]: how a backend splits its
@@ -14,11 +15,12 @@ use serde::Serialize;
 use yarn_backend_wgpu::Gpu;
 use yarn_model::stages::StageTimes;
 use yarn_model::{Backend, Params};
-use yarn_topology::{Chart, Fabric, Geometry, Pin, Side};
+use yarn_topology::{Chart, Fabric, Geometry, Pattern, Pin, Side};
 
 use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
-use crate::cli::{Outcome, TIMED_RUNS, counts, with_bar};
+use crate::cli::{Outcome, PATTERN_HELP, PatternArg, TIMED_RUNS, counts, parse_pattern, with_bar};
+use crate::preset::Preset;
 
 /// `yarn-gate bench`: time each backend at each size.
 #[derive(Debug, clap::Args)]
@@ -26,7 +28,15 @@ pub struct BenchArgs {
     /// Backends to measure, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "serial-f32,serial-f64,rayon")]
     backend: Vec<String>,
-    /// Patch sides in stitches, comma-separated (8 = 8x8 = 512 nodes).
+    /// The model: `default` (the default parameters on interlooped loops,
+    /// 24 nodes a stitch) or `paper` (the paper's parameters on its 8-node
+    /// arch, which knits no purl); compare the two by ns/stitch-step.
+    #[arg(long, value_enum, default_value_t = Preset::Default)]
+    preset: Preset,
+    #[arg(long, default_value = "stockinette", value_parser = parse_pattern, help = PATTERN_HELP)]
+    pattern: PatternArg,
+    /// Patch sides in stitches, comma-separated (8 = 8x8 stitches); unused
+    /// with a chart file --pattern, which is benched at its own size.
     #[arg(long, value_delimiter = ',', default_value = "8,16,32,64")]
     sizes: Vec<usize>,
     /// Threads for the rayon backend; 0 uses one per core.
@@ -74,17 +84,31 @@ impl BenchArgs {
     /// adapter is an error here, not left out: a bench asked for it.
     ///
     /// # Errors
-    /// A bad size, an unknown backend, or a backend failure.
+    /// A bad size, a chart file that cannot be read or parsed, a purl
+    /// stitch with `--preset paper`, an unknown backend, or a backend
+    /// failure.
     pub fn run(&self) -> Result<Outcome, GateError> {
-        let defaults = Params::default();
+        let defaults = self.preset.params();
         let params = Params {
             friction: self.friction.unwrap_or(defaults.friction),
             gravity: self.gravity,
             sleep_speed: self.sleep,
             ..defaults
         };
+        let charts = match &self.pattern {
+            PatternArg::File(path) => vec![Chart::from_file(path)?],
+            PatternArg::Named(pattern) => {
+                self.sizes.iter().map(|&side| pattern.chart(side, side)).collect::<Result<_, _>>()?
+            }
+        };
+        let geometry = self.preset.geometry();
+        // A chart the geometry cannot knit fails here, before any backend.
+        for chart in &charts {
+            Fabric::from_chart(chart, &geometry)?;
+        }
         let config = BenchConfig {
-            sides: self.sizes.clone(),
+            charts,
+            geometry,
             repeats: self.repeats.max(1),
             params,
             pin_top: self.pin_top,
@@ -157,8 +181,10 @@ fn print_gpu_floors(rows: &[BenchRow]) -> Result<(), String> {
 /// How the benchmark runs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchConfig {
-    /// Patch sides in stitches; each patch is side × side.
-    pub sides: Vec<usize>,
+    /// The patches, one row of the table each.
+    pub charts: Vec<Chart>,
+    /// The stitch geometry the charts are knitted in.
+    pub geometry: Geometry,
     /// Timed runs per row; the median is reported.
     pub repeats: usize,
     /// Node-substeps per timed run; the substep count follows from the
@@ -182,11 +208,15 @@ pub struct BenchConfig {
 }
 
 impl Default for BenchConfig {
-    /// 8×8 to 64×64 stitches (512 to 32,768 nodes), 7 runs of about 20
-    /// million node-substeps each.
+    /// Stockinette of 8×8 to 64×64 stitches in the default geometry, 7 runs
+    /// of about 20 million node-substeps each.
     fn default() -> Self {
         Self {
-            sides: vec![8, 16, 32, 64],
+            charts: [8, 16, 32, 64]
+                .into_iter()
+                .map(|side| Pattern::Stockinette.chart(side, side).expect("64x64 stitches are within the node limit"))
+                .collect(),
+            geometry: Geometry::default(),
             repeats: 7,
             work_per_run: 20_000_000,
             params: Params::default(),
@@ -207,6 +237,8 @@ pub struct BenchRow {
     pub threads: usize,
     /// Patch size, `WxH` stitches.
     pub size: String,
+    /// Stitch count, W × H.
+    pub stitches: usize,
     /// Node count.
     pub nodes: usize,
     /// Contact count.
@@ -225,6 +257,10 @@ pub struct BenchRow {
     pub sleep_speed: f64,
     /// Median nanoseconds per node per substep.
     pub ns_per_node_substep: f64,
+    /// Median nanoseconds per stitch per substep: `ns_per_node_substep` ×
+    /// `nodes` / `stitches`, the cost of the same fabric whatever its
+    /// geometry's nodes per stitch.
+    pub ns_per_stitch_substep: f64,
     /// Fastest and slowest run, same unit: the spread of the repeats.
     pub ns_min: f64,
     /// See `ns_min`.
@@ -327,16 +363,17 @@ pub fn bench<B: Backend>(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<BenchRow>, GateError> {
     let stage_calls = if config.stages { config.repeats } else { 0 };
-    let total = (config.sides.len() * (config.repeats + stage_calls)) as u64;
+    let total = (config.charts.len() * (config.repeats + stage_calls)) as u64;
     let mut done = 0;
     let mut count_one = || {
         done += 1;
         progress(done, total);
     };
-    let mut rows = Vec::with_capacity(config.sides.len());
-    for &side in &config.sides {
-        let fabric = Fabric::from_chart(&Chart::stockinette(side, side)?, &Geometry::default())?;
+    let mut rows = Vec::with_capacity(config.charts.len());
+    for chart in &config.charts {
+        let fabric = Fabric::from_chart(chart, &config.geometry)?;
         let nodes = fabric.node_count();
+        let stitches = chart.width() * chart.height();
         backend.load(&fabric, &config.params)?;
         let pins: Vec<Pin> = if config.pin_top {
             let rest = fabric.positions();
@@ -369,10 +406,12 @@ pub fn bench<B: Backend>(
         times.sort_by(f64::total_cmp);
         let median_time = times[times.len() / 2];
         let per = |t: f64| t * 1e9 / (substeps as f64 * nodes as f64);
+        let ns_per_node_substep = per(median_time);
         rows.push(BenchRow {
             backend: backend.name(),
             threads: backend.threads(),
-            size: format!("{side}x{side}"),
+            size: format!("{}x{}", chart.width(), chart.height()),
+            stitches,
             nodes,
             contacts: fabric.contacts().len(),
             substeps,
@@ -381,7 +420,8 @@ pub fn bench<B: Backend>(
             pins: pins.len(),
             dead_contacts: contacts - alive_contacts,
             sleep_speed: config.params.sleep_speed,
-            ns_per_node_substep: per(median_time),
+            ns_per_node_substep,
+            ns_per_stitch_substep: ns_per_node_substep * nodes as f64 / stitches as f64,
             ns_min: per(times[0]),
             ns_max: per(times[times.len() - 1]),
             substeps_per_s: substeps as f64 / median_time,
@@ -395,19 +435,30 @@ pub fn bench<B: Backend>(
 /// last column.
 pub fn table(rows: &[BenchRow]) -> String {
     let mut out = format!(
-        "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14} {:>16} {:>14}  scene\n",
-        "backend", "threads", "size", "nodes", "contacts", "ns/node-step", "(min..max)", "substeps/s"
+        "{:<16} {:>7} {:>7} {:>8} {:>7} {:>8} {:>14} {:>16} {:>15} {:>14}  scene\n",
+        "backend",
+        "threads",
+        "size",
+        "stitches",
+        "nodes",
+        "contacts",
+        "ns/node-step",
+        "(min..max)",
+        "ns/stitch-step",
+        "substeps/s"
     );
     for r in rows {
         out += &format!(
-            "{:<16} {:>7} {:>7} {:>7} {:>8} {:>14.2} {:>16} {:>14.0}  μ={} g={} pins={} dead={} sleep={}\n",
+            "{:<16} {:>7} {:>7} {:>8} {:>7} {:>8} {:>14.2} {:>16} {:>15.2} {:>14.0}  μ={} g={} pins={} dead={} sleep={}\n",
             r.backend,
             r.threads,
             r.size,
+            r.stitches,
             r.nodes,
             r.contacts,
             r.ns_per_node_substep,
             format!("({:.2}..{:.2})", r.ns_min, r.ns_max),
+            r.ns_per_stitch_substep,
             r.substeps_per_s,
             r.friction,
             r.gravity,
@@ -490,12 +541,43 @@ mod tests {
         assert!((shares - 1.0).abs() < 1e-12 && (report.parts[0].share - 20.0 / 31.0).abs() < 1e-12);
     }
 
+    /// A row's per-stitch cost is its per-node cost times the nodes a
+    /// stitch has, in either geometry, and the table shows both.
+    #[test]
+    fn rows_count_stitches_and_their_cost_follows_from_the_nodes() {
+        let chart = Pattern::Rib1x1.chart(4, 3).unwrap();
+        for (geometry, chart) in
+            [(Geometry::default(), chart), (Geometry::paper(), Pattern::Stockinette.chart(3, 2).unwrap())]
+        {
+            let config = BenchConfig {
+                charts: vec![chart.clone()],
+                geometry,
+                repeats: 1,
+                work_per_run: 2_000,
+                ..BenchConfig::default()
+            };
+            let rows = bench(&mut yarn_backend_cpu::Serial::<f32>::new(), &config, &mut |_, _| {}).unwrap();
+            let [row] = rows.as_slice() else { panic!("one chart, one row: {rows:?}") };
+            assert_eq!(row.stitches, chart.width() * chart.height());
+            assert_eq!(row.size, format!("{}x{}", chart.width(), chart.height()));
+            let expected = row.ns_per_node_substep * row.nodes as f64 / row.stitches as f64;
+            assert!(row.ns_per_stitch_substep > 0.0, "{row:?}");
+            assert!((row.ns_per_stitch_substep - expected).abs() <= 1e-12 * expected, "{row:?}");
+            let text = table(&rows);
+            assert!(text.contains("stitches") && text.contains("ns/stitch-step"), "{text}");
+            let json = serde_json::to_value(row).unwrap();
+            assert_eq!(json["stitches"], row.stitches);
+            assert!(json.get("ns_per_stitch_substep").is_some() && json.get("ns_per_node_substep").is_some());
+        }
+    }
+
     #[test]
     fn the_stage_table_has_a_block_per_row_that_has_stages() {
         let row = |stages| BenchRow {
             backend: "serial-f32".into(),
             threads: 1,
             size: "3x3".into(),
+            stitches: 9,
             nodes: 72,
             contacts: 12,
             substeps: 100,
@@ -505,6 +587,7 @@ mod tests {
             dead_contacts: 0,
             sleep_speed: 0.0,
             ns_per_node_substep: 1.0,
+            ns_per_stitch_substep: 8.0,
             ns_min: 1.0,
             ns_max: 1.0,
             substeps_per_s: 1.0,

@@ -1,12 +1,15 @@
-//! What every `yarn-gate` command shares: patch sizes as the command line
-//! writes them, progress bars, and the [`Outcome`] a command hands back to
-//! be printed.
+//! What every `yarn-gate` command shares: patch sizes and patterns as the
+//! command line writes them, progress bars, and the [`Outcome`] a command
+//! hands back to be printed.
 //!
 //! This module knows nothing of any one command, nor of exit codes: the
 //! binary alone turns an outcome or an error into one.
 
+use std::path::{Path, PathBuf};
+
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
+use yarn_topology::{Chart, Pattern, TopologyError};
 
 /// A progress bar's line when it counts substeps.
 pub(crate) const SUBSTEPS: &str = "{msg:>12} [{bar:40}] {pos}/{len} substeps ({eta})";
@@ -54,6 +57,66 @@ pub(crate) fn parse_size(text: &str) -> Result<(usize, usize), String> {
     Ok((width.trim().parse().map_err(|_| err())?, height.trim().parse().map_err(|_| err())?))
 }
 
+/// The help of every command's `--pattern`. Each pattern name is spelled
+/// out here, as clap needs a constant; a test holds it to [`Pattern::ALL`].
+pub(crate) const PATTERN_HELP: &str = "The stitches: a pattern name (stockinette, reverse-stockinette, garter, \
+     rib-1x1, rib-2x2, seed), knitted at --size (bench: each of --sizes); or else the path of a plain-text chart \
+     file (one row of k and p per line as the face shows them, the bottom row last, # starts a comment), which \
+     sets its own size and leaves --size/--sizes unused";
+
+/// A patch's stitches as `--pattern` gives them.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum PatternArg {
+    /// A named pattern, sized by the command's size flag.
+    Named(Pattern),
+    /// A plain-text chart file ([`Chart::parse`]'s format), which sets its
+    /// own size. It is read when the command runs, so its errors are the
+    /// command's ([`crate::GateError::Topology`]).
+    File(PathBuf),
+}
+
+impl Default for PatternArg {
+    fn default() -> Self {
+        Self::Named(Pattern::Stockinette)
+    }
+}
+
+impl PatternArg {
+    /// The chart: the named pattern at `width` × `height`, or the file's
+    /// chart at its own size.
+    ///
+    /// # Errors
+    /// A size the chart cannot take, or a file that cannot be read or is
+    /// not a chart (the error names its row, line and column).
+    pub(crate) fn chart(&self, (width, height): (usize, usize)) -> Result<Chart, TopologyError> {
+        match self {
+            Self::Named(pattern) => pattern.chart(width, height),
+            Self::File(path) => Chart::from_file(path),
+        }
+    }
+}
+
+/// Parse `--pattern`: a pattern name first, so a file named like one is
+/// shadowed by it; otherwise the path of an existing file.
+///
+/// # Errors
+/// A message listing every pattern name and saying a chart file is also
+/// accepted, when `text` is neither a name nor an existing path.
+pub(crate) fn parse_pattern(text: &str) -> Result<PatternArg, String> {
+    if let Ok(pattern) = text.parse::<Pattern>() {
+        return Ok(PatternArg::Named(pattern));
+    }
+    let path = Path::new(text);
+    if path.exists() {
+        return Ok(PatternArg::File(path.to_path_buf()));
+    }
+    let names = Pattern::ALL.map(Pattern::name).join(", ");
+    Err(format!(
+        "`{text}` is neither a pattern nor an existing file; name one of: {names}; or give the path of a \
+         plain-text chart file (rows of k and p, the bottom row last)"
+    ))
+}
+
 /// Run `work` with a bar of `len` steps, drawn as `template` and labelled
 /// `label`, and clear the bar afterwards, whether `work` failed or not.
 pub(crate) fn with_bar<T>(len: u64, template: &str, label: &str, work: impl FnOnce(&ProgressBar) -> T) -> T {
@@ -80,5 +143,42 @@ pub(crate) fn phases(bar: &ProgressBar) -> impl FnMut(&'static str, u64, u64) + 
         bar.set_message(phase);
         bar.set_length(total);
         bar.set_position(done);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pattern_is_a_name_first_then_an_existing_file() {
+        assert_eq!(parse_pattern("seed"), Ok(PatternArg::Named(Pattern::Seed)));
+        assert_eq!(parse_pattern("rib-2x2"), Ok(PatternArg::Named(Pattern::Rib2x2)));
+        assert_eq!(PatternArg::default(), PatternArg::Named(Pattern::Stockinette));
+        let path = std::env::temp_dir().join(format!("yarnify-pattern-{}.txt", std::process::id()));
+        std::fs::write(&path, "kp\npk\n").unwrap();
+        let text = path.to_str().unwrap();
+        let arg = parse_pattern(text).unwrap();
+        assert_eq!(arg, PatternArg::File(path.clone()));
+        let chart = arg.chart((40, 40)).unwrap();
+        assert_eq!((chart.width(), chart.height(), chart.to_text()), (2, 2, "kp\npk\n".to_owned()), "its own size");
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(PatternArg::Named(Pattern::Garter).chart((3, 2)).unwrap().to_text(), "ppp\nkkk\n");
+    }
+
+    #[test]
+    fn an_unknown_pattern_lists_every_name_and_the_chart_file() {
+        let message = parse_pattern("moss-stitch-nowhere").unwrap_err();
+        for pattern in Pattern::ALL {
+            assert!(message.contains(pattern.name()), "{message} lacks {pattern}");
+        }
+        assert!(message.contains("`moss-stitch-nowhere`") && message.contains("chart file"), "{message}");
+    }
+
+    #[test]
+    fn the_pattern_help_names_every_pattern() {
+        for pattern in Pattern::ALL {
+            assert!(PATTERN_HELP.contains(&format!("{pattern},")) || PATTERN_HELP.contains(&format!("{pattern})")));
+        }
     }
 }

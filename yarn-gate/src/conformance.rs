@@ -459,7 +459,9 @@ fn nudged_reference_end(scene: &Scene, factor: f32) -> State<f32> {
 pub mod strategy {
     use proptest::prelude::*;
     use yarn_model::{Params, State, V3};
-    use yarn_topology::{Chart, Fabric, FabricParts, Geometry, Pin, Vec3, YarnSpan};
+    use yarn_topology::{
+        Chart, Fabric, FabricParts, Geometry, Pattern, Pin, StitchKind, TopologyError, Vec3, YarnSpan,
+    };
 
     use super::Scene;
 
@@ -468,7 +470,7 @@ pub mod strategy {
     pub const SLEEP_SHARE: f64 = 0.25;
     /// The share of scenes whose fabric is a strip of more nodes than one
     /// CPU block (512), so block edges and ragged ends are crossed.
-    pub const BLOCK_CROSSING_SHARE: f64 = 0.2;
+    pub const BLOCK_CROSSING_SHARE: f64 = 1.0 / 6.0;
 
     /// Parameters drawn across their valid ranges, with the substep kept
     /// at most a quarter of the single-element stability bound: a chain of
@@ -505,19 +507,32 @@ pub mod strategy {
             })
     }
 
-    /// A fabric: a stockinette chart from 1×1 to 6×5 (thin strips
-    /// included), a strip of 480 to 1,280 nodes across the CPU's blocks of
-    /// 512 ([`BLOCK_CROSSING_SHARE`]), or a random user-built polyline with
-    /// random contacts.
+    /// A fabric: the paper's arch on a stockinette chart from 1×1 to 6×5
+    /// (thin strips included); interlooped loops on a chart from 1×1 to
+    /// 4×4 (at most 400 nodes) that is a named pattern or a random mix of
+    /// knit and purl ([`mixed_chart`]); a strip of 480 to 1,280 nodes
+    /// across the CPU's blocks of 512 ([`BLOCK_CROSSING_SHARE`]), in either
+    /// geometry; or a random user-built polyline with random contacts.
     pub fn fabric() -> impl Strategy<Value = Fabric> {
-        let chart = (1usize..=6, 1usize..=5)
-            .prop_map(|(w, h)| Chart::stockinette(w, h).and_then(|c| Fabric::from_chart(&c, &Geometry::default())))
+        let arch = (1usize..=6, 1usize..=5)
+            .prop_map(|(w, h)| Chart::stockinette(w, h).and_then(|c| Fabric::from_chart(&c, &Geometry::paper())))
             .prop_map(|fabric| fabric.expect("charts of 1..=6 by 1..=5 are valid"));
+        let loops = (1usize..=4, 1usize..=4, 0..=Pattern::ALL.len(), any::<u64>())
+            .prop_map(|(w, h, pattern, seed)| {
+                let chart = match Pattern::ALL.get(pattern) {
+                    Some(p) => p.chart(w, h),
+                    None => mixed_chart(w, h, seed),
+                };
+                chart.and_then(|c| Fabric::from_chart(&c, &Geometry::default()))
+            })
+            .prop_map(|fabric| fabric.expect("charts of 1..=4 by 1..=4 are valid"));
         // Long strips of 480 to 1,280 nodes, so backends that cut the yarn
         // into blocks are tested across block edges and with ragged ends.
-        let strip = (60usize..=80, 1usize..=2)
-            .prop_map(|(w, h)| Chart::stockinette(w, h).and_then(|c| Fabric::from_chart(&c, &Geometry::default())))
-            .prop_map(|fabric| fabric.expect("charts of 60..=80 by 1..=2 are valid"));
+        let arch_strip = (60usize..=80, 1usize..=2)
+            .prop_map(|(w, h)| Chart::stockinette(w, h).and_then(|c| Fabric::from_chart(&c, &Geometry::paper())));
+        let loop_strip = (22usize..=30, any::<u64>())
+            .prop_map(|(w, seed)| mixed_chart(w, 1, seed).and_then(|c| Fabric::from_chart(&c, &Geometry::default())));
+        let strip = prop_oneof![arch_strip, loop_strip].prop_map(|fabric| fabric.expect("strips are valid"));
         let parts = (3usize..40)
             .prop_flat_map(|n| {
                 (
@@ -538,7 +553,24 @@ pub mod strategy {
                 Fabric::from_parts(FabricParts { positions, contacts, ..FabricParts::default() })
                     .expect("steps of at least 0.4 never repeat a node; self-contacts are filtered")
             });
-        prop_oneof![3 => chart, 1 => strip, 1 => parts]
+        prop_oneof![2 => arch, 2 => loops, 1 => strip, 1 => parts]
+    }
+
+    /// A `width` × `height` chart of knits and purls drawn from `seed`'s
+    /// bits (a new xorshift draw each 64 stitches).
+    pub fn mixed_chart(width: usize, height: usize, seed: u64) -> Result<Chart, TopologyError> {
+        let mut bits = seed | 1;
+        let stitches = (0..width * height)
+            .map(|i| {
+                if i % 64 == 0 {
+                    bits ^= bits << 13;
+                    bits ^= bits >> 7;
+                    bits ^= bits << 17;
+                }
+                if bits >> (i % 64) & 1 == 1 { StitchKind::Purl } else { StitchKind::Knit }
+            })
+            .collect();
+        Chart::new(width, height, stitches)
     }
 
     /// Two open yarns crossing at right angles, one 0.9 in front of the

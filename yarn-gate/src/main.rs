@@ -24,11 +24,13 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Relax a free stockinette patch and check dissipation, edge curl and
-    /// course/wale anisotropy (exit code 0 only if all pass).
+    /// Relax a free patch (stockinette, or --pattern's) and check
+    /// dissipation, edge curl and course/wale anisotropy (exit code 0 only
+    /// if all pass).
     Check(CheckArgs),
-    /// Measure the cost per node per substep of each backend over square
-    /// patches (median of repeated runs after a warm-up).
+    /// Measure the cost per node, and per stitch, per substep of each
+    /// backend over square patches or a chart file (median of repeated
+    /// runs after a warm-up).
     Bench(BenchArgs),
     /// Check the GPU backend against the serial f32 one on this machine's
     /// adapter, in both accumulation modes (exit code 0 only if both pass).

@@ -6,7 +6,7 @@ use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 use yarn_model::statics::{self, StaticOptions};
 use yarn_model::{Backend, BackendError, Model, State, step, widen};
-use yarn_topology::{Fabric, Pin, SEG, Side};
+use yarn_topology::{Fabric, Pin, Side};
 
 /// One sample of a relaxation.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -119,12 +119,23 @@ pub fn curl(fabric: &Fabric, positions: &[Vector3<f64>]) -> Option<Curl> {
     Some(Curl { course: family(|b| b.on_course_edge())?, wale: family(|b| b.on_wale_edge())? })
 }
 
+/// [`curl`] at `positions` less [`curl`] as assembled: how far each edge
+/// family has moved out of the mid-plane since knitting, in yarn radii.
+/// The paper's arch reads zero as assembled, so for it this is `curl`;
+/// interlooped loops read −0.01 r (course) and −0.16 r (wale) as assembled,
+/// because a row's far sinker and the turns between rows lie at the
+/// sinkers' depth, behind the loops' mean.
+pub fn curl_since_assembly(fabric: &Fabric, positions: &[Vector3<f64>]) -> Option<Curl> {
+    let (now, assembled) = (curl(fabric, positions)?, curl(fabric, fabric.positions())?);
+    Some(Curl { course: now.course - assembled.course, wale: now.wale - assembled.wale })
+}
+
 /// The resting size of a patch generated from a chart, measured so that a
 /// curled edge does not shrink it: the arc length of the line through the
 /// stitch centres of the middle row (width) and of the middle column
 /// (height), from the first stitch's centre to the last's. A stitch's
-/// centre is the mean of its loop's nodes (phases 1 to SEG − 1, which
-/// every row has). At assembly these are (W − 1) and (H − 1) stitch
+/// centre is the mean of its loop's own nodes (phases 1 to
+/// `nodes_per_loop − 1`, which every row has). At assembly these are (W − 1) and (H − 1) stitch
 /// pitches.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Extent {
@@ -141,8 +152,9 @@ pub fn extent(fabric: &Fabric, positions: &[Vector3<f64>]) -> Option<Extent> {
     if w < 2 || h < 2 {
         return None;
     }
+    let per_loop = fabric.nodes_per_loop()?;
     let centre = |column: usize, row: usize| -> Option<Vector3<f64>> {
-        let nodes: Option<Vec<usize>> = (1..SEG).map(|p| fabric.stitch_node(column, row, p)).collect();
+        let nodes: Option<Vec<usize>> = (1..per_loop).map(|p| fabric.stitch_node(column, row, p)).collect();
         let nodes = nodes?;
         Some(nodes.iter().map(|&i| positions[i]).sum::<Vector3<f64>>() / nodes.len() as f64)
     };
@@ -376,7 +388,10 @@ mod tests {
 
     #[test]
     fn a_flat_patch_reads_zero_curl_and_a_rolled_one_does_not() {
-        let fabric = Fabric::from_chart(&Chart::stockinette(6, 6).unwrap(), &Geometry::default()).unwrap();
+        // The arch's edge stitches are its interior's, so it reads zero as
+        // assembled. (Interlooped loops read a little: their turns between
+        // rows lie at the sinkers' depth; see the next test.)
+        let fabric = Fabric::from_chart(&Chart::stockinette(6, 6).unwrap(), &Geometry::paper()).unwrap();
         let flat: Vec<_> = fabric.positions().to_vec();
         let c = curl(&fabric, &flat).unwrap();
         assert!(c.total() < 1e-9, "assembled patch reads {c:?}");
@@ -392,6 +407,23 @@ mod tests {
         // reads as a little less than one radius along its normal.
         assert!((c.course - 1.0).abs() < 1e-2, "{c:?}");
         assert!(c.wale > 0.0 && c.wale < 1.0, "{c:?}");
+    }
+
+    #[test]
+    fn interlooped_loops_read_their_assembly_bias_and_zero_since_assembly() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(6, 6).unwrap(), &Geometry::default()).unwrap();
+        let assembled = curl(&fabric, fabric.positions()).unwrap();
+        assert!((assembled.course + 0.01).abs() < 0.01 && (assembled.wale + 0.16).abs() < 0.02, "{assembled:?}");
+        let since = curl_since_assembly(&fabric, fabric.positions()).unwrap();
+        assert_eq!((since.course, since.wale), (0.0, 0.0));
+        let lifted: Vec<_> = fabric
+            .positions()
+            .iter()
+            .zip(fabric.boundary())
+            .map(|(p, b)| if b.on_course_edge() { p + Vector3::z() * fabric.yarn_radius() } else { *p })
+            .collect();
+        let c = curl_since_assembly(&fabric, &lifted).unwrap();
+        assert!((c.course - 1.0).abs() < 2e-2, "{c:?}");
     }
 
     #[test]

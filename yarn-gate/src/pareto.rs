@@ -31,8 +31,9 @@ use yarn_topology::{Chart, Fabric, Geometry, Pin, Side};
 use crate::GateError;
 use crate::backends::{BackendWork, for_each_backend, left_out_warning};
 use crate::bench::median;
-use crate::cli::{Outcome, parse_size, with_bar};
+use crate::cli::{Outcome, PATTERN_HELP, PatternArg, parse_pattern, parse_size, with_bar};
 use crate::plot::{PanelAxes, canvas, distinct, log_log_panel, panel_legend, plot_error};
+use crate::preset::Preset;
 
 /// `yarn-gate pareto`: every configuration on every problem, against the
 /// reference.
@@ -42,7 +43,16 @@ pub struct ParetoArgs {
     /// when there is no adapter.
     #[arg(long, value_delimiter = ',', default_value = "serial-f64,serial-f32,rayon,wgpu,wgpu-fixed")]
     backend: Vec<String>,
-    /// Patch size in stitches, WIDTHxHEIGHT.
+    /// The model every problem starts from (each sets its own substep and
+    /// gravity): `default` (the default parameters on interlooped loops)
+    /// or `paper` (the paper's parameters on its 8-node arch, which knits
+    /// no purl).
+    #[arg(long, value_enum, default_value_t = Preset::Default)]
+    preset: Preset,
+    #[arg(long, default_value = "stockinette", value_parser = parse_pattern, help = PATTERN_HELP)]
+    pattern: PatternArg,
+    /// Patch size in stitches, WIDTHxHEIGHT (unused with a chart file
+    /// --pattern).
     #[arg(long, default_value = "16x16", value_parser = parse_size)]
     size: (usize, usize),
     /// Simulated seconds per problem.
@@ -72,15 +82,24 @@ impl ParetoArgs {
     /// problem's front and the recommendation, and write the CSV and plot.
     ///
     /// # Errors
-    /// A bad size, an unknown backend, a backend failure other than a
-    /// refused substep, or a file that cannot be written.
+    /// A bad size, a chart file that cannot be read or parsed, a purl
+    /// stitch with `--preset paper`, an unknown backend, a backend failure
+    /// other than a refused substep, or a file that cannot be written.
     pub fn run(&self) -> Result<Outcome, GateError> {
+        let patch = Patch {
+            chart: self.pattern.chart(self.size)?,
+            geometry: self.preset.geometry(),
+            params: self.preset.params(),
+        };
+        // A chart the geometry cannot knit fails here, before any run.
+        Fabric::from_chart(&patch.chart, &patch.geometry)?;
+        let patch = &patch;
         let ticks = (self.duration / CONTROL).round().max(1.0) as u32;
         let runs = Problem::ALL.len() * REFERENCE_SUBSTEPS.len() + self.backend.len() * self.runs_per_backend();
         let (reference_self_error, mut rows) =
             with_bar(runs as u64, "{msg:>24} [{bar:40}] {pos}/{len} runs ({eta})", "", |bar| {
-                let (references, reference_self_error) = self.references(ticks, bar)?;
-                let mut sweep = Sweep { args: self, references: &references, ticks, bar };
+                let (references, reference_self_error) = self.references(patch, ticks, bar)?;
+                let mut sweep = Sweep { args: self, patch, references: &references, ticks, bar };
                 let rows = for_each_backend(&self.backend, 0, &mut sweep)?.concat();
                 Ok::<_, GateError>((reference_self_error, rows))
             })?;
@@ -99,14 +118,19 @@ impl ParetoArgs {
 
     /// Each problem's reference run, and how far the reference is from
     /// itself at half its substep.
-    fn references(&self, ticks: u32, bar: &ProgressBar) -> Result<(Vec<Run>, BTreeMap<&'static str, f64>), GateError> {
-        let radius = Geometry::default().yarn_radius;
+    fn references(
+        &self,
+        patch: &Patch,
+        ticks: u32,
+        bar: &ProgressBar,
+    ) -> Result<(Vec<Run>, BTreeMap<&'static str, f64>), GateError> {
+        let radius = patch.geometry.yarn_radius;
         let mut references = Vec::new();
         let mut self_error = BTreeMap::new();
         for problem in Problem::ALL {
             bar.set_message(format!("reference {}", problem.name()));
             let [coarse, fine] =
-                REFERENCE_SUBSTEPS.map(|n| run(&mut Serial::<f64>::new(), problem, self.size, ticks, n, CHECKPOINTS));
+                REFERENCE_SUBSTEPS.map(|n| run(&mut Serial::<f64>::new(), problem, patch, ticks, n, CHECKPOINTS));
             let (coarse, fine) = (coarse?, fine?);
             bar.inc(REFERENCE_SUBSTEPS.len() as u64);
             self_error.insert(problem.name(), errors(&coarse, &fine, radius).0);
@@ -160,6 +184,7 @@ impl ParetoReport {
 /// Every configuration of one backend on every problem.
 struct Sweep<'a> {
     args: &'a ParetoArgs,
+    patch: &'a Patch,
     /// Each problem's reference, in [`Problem::ALL`] order.
     references: &'a [Run],
     ticks: u32,
@@ -180,7 +205,7 @@ impl BackendWork for Sweep<'_> {
                 self.bar.set_message(format!("{name} {}", problem.name()));
                 let mut runs = Vec::new();
                 for _ in 0..self.args.repeats.max(1) {
-                    runs.push(match run(&mut backend, problem, self.args.size, self.ticks, per_tick, CHECKPOINTS) {
+                    runs.push(match run(&mut backend, problem, self.patch, self.ticks, per_tick, CHECKPOINTS) {
                         Ok(measured) => measured,
                         // An h the parameters refuse: a failed configuration.
                         Err(GateError::Backend(e)) => Run::failed(e.to_string()),
@@ -190,7 +215,8 @@ impl BackendWork for Sweep<'_> {
                 }
                 let wall_s_per_sim_s = median(runs.iter().map(|repeat| repeat.wall_s)) / sim_seconds;
                 if let Some(last) = runs.pop() {
-                    rows.push(ParetoRow::new(problem, name, h, wall_s_per_sim_s, last, reference));
+                    let radius = self.patch.geometry.yarn_radius;
+                    rows.push(ParetoRow::new(problem, name, h, wall_s_per_sim_s, last, reference, radius));
                 }
             }
         }
@@ -223,6 +249,18 @@ pub const ACCURACY: f64 = 0.1;
 /// counts as failed.
 pub const DIVERGED: f64 = 1e3;
 
+/// The patch every problem is posed on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Patch {
+    /// Its stitches.
+    pub chart: Chart,
+    /// The geometry they are knitted in.
+    pub geometry: Geometry,
+    /// The model each problem starts from; the problem sets the substep
+    /// and gravity ([`Problem::params`]).
+    pub params: Params,
+}
+
 /// The reference problems.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -253,14 +291,16 @@ impl Problem {
         }
     }
 
-    /// Its parameters at substep `h`.
-    fn params(self, h: f64) -> Params {
+    /// Its parameters at substep `h`: `model`'s, with gravity only when
+    /// draping.
+    pub fn params(self, model: &Params, h: f64) -> Params {
         let gravity = if self == Problem::Drape { 9.81 } else { 0.0 };
-        Params { substep: h, gravity, ..Params::paper() }
+        Params { substep: h, gravity, ..*model }
     }
 
-    /// The pins at simulated time `t` of a run lasting `duration`.
-    fn pins(self, fabric: &Fabric, t: f64, duration: f64) -> Vec<Pin> {
+    /// The pins at simulated time `t` of a run lasting `duration`, on
+    /// `fabric` knitted in `geometry`.
+    fn pins(self, fabric: &Fabric, geometry: &Geometry, t: f64, duration: f64) -> Vec<Pin> {
         let rest = fabric.positions();
         let ramp = (2.0 * t / duration).min(1.0);
         let held = |side| fabric.side_nodes(side).into_iter();
@@ -278,9 +318,9 @@ impl Problem {
             }
             Problem::Snag => {
                 let Some((w, h)) = fabric.grid() else { return Vec::new() };
-                let Some(node) = fabric.stitch_node(w / 2, h / 2, yarn_topology::SEG / 2) else { return Vec::new() };
+                let Some(node) = fabric.head_node(w / 2, h / 2) else { return Vec::new() };
                 let out = fabric.course().cross(&fabric.wale());
-                let reach = 3.0 * Geometry::default().stitch_width * ramp;
+                let reach = 3.0 * geometry.stitch_width * ramp;
                 vec![Pin { node: node as u32, target: rest[node] + out * reach }]
             }
             Problem::Drape => held(Side::Top).map(|node| Pin { node, target: rest[node as usize] }).collect(),
@@ -310,7 +350,7 @@ impl Run {
     }
 }
 
-/// Run `problem` on a `size` patch for `ticks` control ticks at `per_tick`
+/// Run `problem` on `patch` for `ticks` control ticks at `per_tick`
 /// substeps a tick, reading the state at `checkpoints` evenly spaced ticks.
 ///
 /// # Errors
@@ -319,13 +359,13 @@ impl Run {
 pub fn run<B: Backend>(
     backend: &mut B,
     problem: Problem,
-    size: (usize, usize),
+    patch: &Patch,
     ticks: u32,
     per_tick: u32,
     checkpoints: u32,
 ) -> Result<Run, GateError> {
-    let fabric = Fabric::from_chart(&Chart::stockinette(size.0, size.1)?, &Geometry::default())?;
-    let params = problem.params(CONTROL / f64::from(per_tick));
+    let fabric = Fabric::from_chart(&patch.chart, &patch.geometry)?;
+    let params = problem.params(&patch.params, CONTROL / f64::from(per_tick));
     backend.load(&fabric, &params)?;
     let duration = CONTROL * f64::from(ticks);
     let mut out = Run { checkpoints: Vec::new(), energies: Vec::new(), wall_s: 0.0, failure: None };
@@ -333,7 +373,7 @@ pub fn run<B: Backend>(
     for tick in 0..ticks {
         let start = Instant::now();
         let advanced = backend
-            .set_pins(&problem.pins(&fabric, CONTROL * f64::from(tick), duration))
+            .set_pins(&problem.pins(&fabric, &patch.geometry, CONTROL * f64::from(tick), duration))
             .and_then(|()| backend.advance(u64::from(per_tick)));
         out.wall_s += start.elapsed().as_secs_f64();
         if let Err(e) = advanced {
@@ -409,12 +449,20 @@ pub struct ParetoRow {
 
 impl ParetoRow {
     /// `backend`'s row at substep `h` on `problem`: `run` (its last repeat)
-    /// measured against `reference` by [`errors`], beside its median wall
-    /// seconds per simulated second. A run beyond [`DIVERGED`] is a
-    /// failure. Neither on the front nor recommended until [`mark_front`]
-    /// and [`recommend`] say so.
-    pub fn new(problem: Problem, backend: &str, h: f64, wall_s_per_sim_s: f64, run: Run, reference: &Run) -> Self {
-        let (pos_err_max, pos_err_rms, energy_err) = errors(&run, reference, Geometry::default().yarn_radius);
+    /// measured against `reference` by [`errors`] in yarn radii of
+    /// `radius`, beside its median wall seconds per simulated second. A
+    /// run beyond [`DIVERGED`] is a failure. Neither on the front nor
+    /// recommended until [`mark_front`] and [`recommend`] say so.
+    pub fn new(
+        problem: Problem,
+        backend: &str,
+        h: f64,
+        wall_s_per_sim_s: f64,
+        run: Run,
+        reference: &Run,
+        radius: f64,
+    ) -> Self {
+        let (pos_err_max, pos_err_rms, energy_err) = errors(&run, reference, radius);
         let failure =
             run.failure.or_else(|| (!pos_err_max.is_finite()).then(|| format!("diverged: beyond {DIVERGED} r")));
         Self {
@@ -723,7 +771,7 @@ mod tests {
                 let h = CONTROL / f64::from(*per_tick);
                 let mut run = run.clone();
                 run.checkpoints.iter_mut().flatten().for_each(|p| *p *= error_scale);
-                rows.push(ParetoRow::new(problem, backend, h, wall * wall_scale, run, &reference));
+                rows.push(ParetoRow::new(problem, backend, h, wall * wall_scale, run, &reference, radius));
             }
         }
         let error = |config: &str| rows.iter().find(|r| r.config == config).map(|r| r.pos_err_max);
@@ -775,21 +823,27 @@ mod tests {
 
     #[test]
     fn each_problem_drives_its_pins_on_the_control_clock() {
-        let fabric =
-            Fabric::from_chart(&Chart::stockinette(6, 6).expect("size"), &Geometry::default()).expect("fabric");
-        assert!(Problem::Relax.pins(&fabric, 0.5, 1.0).is_empty());
-        let start = Problem::Pull.pins(&fabric, 0.0, 1.0);
-        let half = Problem::Pull.pins(&fabric, 0.5, 1.0);
-        let end = Problem::Pull.pins(&fabric, 1.0, 1.0);
-        assert_eq!(start.len(), 2 * fabric.side_nodes(Side::Left).len());
+        let geometry = Geometry::default();
+        let fabric = Fabric::from_chart(&Chart::stockinette(6, 6).expect("size"), &geometry).expect("fabric");
+        let pins = |problem: Problem, t| problem.pins(&fabric, &geometry, t, 1.0);
+        assert!(pins(Problem::Relax, 0.5).is_empty());
+        let start = pins(Problem::Pull, 0.0);
+        let half = pins(Problem::Pull, 0.5);
+        let end = pins(Problem::Pull, 1.0);
+        // Interlooped rows end in different turns at the two sides, so the
+        // columns need not hold as many nodes each.
+        assert_eq!(start.len(), fabric.side_nodes(Side::Left).len() + fabric.side_nodes(Side::Right).len());
         let moved =
             |pins: &[Pin]| pins.iter().map(|p| (p.target - fabric.positions()[p.node as usize]).norm()).sum::<f64>();
         assert_eq!(moved(&start), 0.0);
         assert!(moved(&half) > 0.0 && (moved(&half) - moved(&end)).abs() < 1e-12, "the pull ramps, then holds");
-        let snag = Problem::Snag.pins(&fabric, 1.0, 1.0);
+        let snag = pins(Problem::Snag, 1.0);
         assert_eq!(snag.len(), 1);
-        assert!((moved(&snag) - 3.0 * Geometry::default().stitch_width).abs() < 1e-9);
-        assert_eq!(Problem::Drape.pins(&fabric, 0.3, 1.0).len(), fabric.side_nodes(Side::Top).len());
-        assert!(Problem::Drape.params(1e-3).gravity > 0.0 && Problem::Relax.params(1e-3).gravity == 0.0);
+        assert!((moved(&snag) - 3.0 * geometry.stitch_width).abs() < 1e-9);
+        assert_eq!(pins(Problem::Drape, 0.3).len(), fabric.side_nodes(Side::Top).len());
+        let model = Params { friction: 0.125, ..Params::paper() };
+        let (drape, relax) = (Problem::Drape.params(&model, 1e-3), Problem::Relax.params(&model, 1e-3));
+        assert!(drape.gravity > 0.0 && relax.gravity == 0.0);
+        assert_eq!((drape.substep, drape.friction, relax.friction), (1e-3, 0.125, 0.125), "the model's, but h");
     }
 }

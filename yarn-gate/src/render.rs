@@ -12,19 +12,57 @@ use yarn_backend_wgpu::Gpu;
 use yarn_model::statics::StaticOptions;
 use yarn_model::{Backend, Params, State, widen};
 use yarn_render::{Renderer, View, tube_obj};
-use yarn_topology::{Chart, Fabric, Geometry};
+use yarn_topology::Fabric;
 
 use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
 use crate::check::STATIC_BUDGET;
 use crate::check::rest::PROGRESS;
-use crate::cli::{Outcome, SUBSTEPS, parse_size, with_bar};
+use crate::cli::{Outcome, PATTERN_HELP, PatternArg, SUBSTEPS, parse_pattern, parse_size, with_bar};
+use crate::preset::Preset;
 use crate::settle::{Settle, Statics};
+
+/// Which side of the fabric `render` looks at; each sets the camera's
+/// default orbit and elevation ([`ViewSide::angles`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum ViewSide {
+    /// The technical face, the +z side, where a knit stitch shows its V
+    /// and a purl its bumps: orbit 0°, elevation 0°.
+    #[default]
+    Face,
+    /// The back, from behind: orbit 180°, elevation 0°.
+    Back,
+    /// Edge-on, looking along the course at the left and right columns,
+    /// to show the fabric's thickness and how its course edges curl:
+    /// orbit 90°, elevation 0°.
+    Edge,
+}
+
+impl ViewSide {
+    /// The camera's (orbit, elevation) in degrees. Elevation 0 looks
+    /// square at the face or back, so the columns of Vs and the rows of
+    /// bumps read straight; an angled view foreshortens them.
+    pub fn angles(self) -> (f32, f32) {
+        match self {
+            ViewSide::Face => (0.0, 0.0),
+            ViewSide::Back => (180.0, 0.0),
+            ViewSide::Edge => (90.0, 0.0),
+        }
+    }
+}
 
 /// `yarn-gate render`: relax, draw, save.
 #[derive(Debug, clap::Args)]
 pub struct RenderArgs {
-    /// Patch size in stitches, WIDTHxHEIGHT.
+    /// The model: `default` (the default parameters on interlooped loops)
+    /// or `paper` (the paper's parameters on its 8-node arch, which knits
+    /// no purl).
+    #[arg(long, value_enum, default_value_t = Preset::Default)]
+    preset: Preset,
+    #[arg(long, default_value = "stockinette", value_parser = parse_pattern, help = PATTERN_HELP)]
+    pattern: PatternArg,
+    /// Patch size in stitches, WIDTHxHEIGHT (unused with a chart file
+    /// --pattern).
     #[arg(long, default_value = "16x16", value_parser = parse_size)]
     size: (usize, usize),
     /// Substeps of free relaxation before drawing.
@@ -42,12 +80,18 @@ pub struct RenderArgs {
     /// Image size in pixels, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x960", value_parser = parse_size)]
     image: (usize, usize),
-    /// Camera rotation about the vertical axis, in degrees.
-    #[arg(long, default_value_t = 0.0)]
-    orbit: f32,
-    /// Camera angle above the fabric's plane, in degrees.
-    #[arg(long, default_value_t = 20.0)]
-    elevation: f32,
+    /// The side to look at: `face` (the technical face, +z), `back` (from
+    /// behind) or `edge` (edge-on along the course, to show thickness and
+    /// curl). It sets the default --orbit and --elevation.
+    #[arg(long, value_enum, default_value_t = ViewSide::Face)]
+    side: ViewSide,
+    /// Camera rotation about the vertical axis, in degrees, 0 facing the
+    /// technical face [default: 0 for --side face, 180 back, 90 edge].
+    #[arg(long, allow_negative_numbers = true)]
+    orbit: Option<f32>,
+    /// Camera angle above the fabric's plane, in degrees [default: 0].
+    #[arg(long, allow_negative_numbers = true)]
+    elevation: Option<f32>,
     /// Draw the certified rest that `check` measures (its frictionless
     /// solve) instead of --steps substeps of the dynamics on --backend.
     #[arg(long)]
@@ -59,23 +103,26 @@ impl RenderArgs {
     /// the frame is yarn.
     ///
     /// # Errors
-    /// A bad size, a backend failure, no GPU to draw on, or a file that
-    /// cannot be written.
+    /// A bad size, a chart file that cannot be read or parsed, a purl
+    /// stitch with `--preset paper`, a backend failure, no GPU to draw on,
+    /// or a file that cannot be written.
     pub fn run(&self) -> Result<Outcome, GateError> {
-        let fabric = Fabric::from_chart(&Chart::stockinette(self.size.0, self.size.1)?, &Geometry::default())?;
+        let fabric = Fabric::from_chart(&self.pattern.chart(self.size)?, &self.preset.geometry())?;
+        let params = self.preset.params();
         let positions = if self.at_rest {
-            at_rest(&fabric)?
+            at_rest(&fabric, &params)?
         } else {
             with_bar(self.steps, SUBSTEPS, "relaxing", |bar| {
-                with_backend(&self.backend, 0, &mut Relax { fabric: &fabric, steps: self.steps, bar })
+                with_backend(&self.backend, 0, &mut Relax { fabric: &fabric, params: &params, steps: self.steps, bar })
             })?
         };
         let radius = fabric.yarn_radius() as f32;
+        let (orbit, elevation) = self.angles();
         let view = View {
             width: self.image.0 as u32,
             height: self.image.1 as u32,
-            orbit: self.orbit.to_radians(),
-            elevation: self.elevation.to_radians(),
+            orbit: orbit.to_radians(),
+            elevation: elevation.to_radians(),
             zoom: 1.0,
         };
         let frame = Renderer::new(&*Gpu::new()?)
@@ -91,12 +138,19 @@ impl RenderArgs {
         }
         Ok(Outcome::text(stdout))
     }
+
+    /// The camera's (orbit, elevation) in degrees: --side's, unless
+    /// --orbit or --elevation says otherwise.
+    fn angles(&self) -> (f32, f32) {
+        let (orbit, elevation) = self.side.angles();
+        (self.orbit.unwrap_or(orbit), self.elevation.unwrap_or(elevation))
+    }
 }
 
 /// The positions of `fabric` at the rest `check` certifies, by its static
 /// path, in f32; an error if the rest did not certify within the budget.
-fn at_rest(fabric: &Fabric) -> Result<Vec<[f32; 3]>, GateError> {
-    let mut statics = Statics::new(fabric, &Params::default(), StaticOptions::default())?;
+fn at_rest(fabric: &Fabric, params: &Params) -> Result<Vec<[f32; 3]>, GateError> {
+    let mut statics = Statics::new(fabric, params, StaticOptions::default())?;
     let rest = with_bar(STATIC_BUDGET, PROGRESS, "relax", |bar| {
         statics.settle(&State::at_rest(fabric), &[], STATIC_BUDGET, &mut |done| bar.set_position(done))
     })?;
@@ -110,6 +164,7 @@ fn at_rest(fabric: &Fabric) -> Result<Vec<[f32; 3]>, GateError> {
 /// hand back the positions in f32.
 struct Relax<'a> {
     fabric: &'a Fabric,
+    params: &'a Params,
     steps: u64,
     bar: &'a ProgressBar,
 }
@@ -118,7 +173,7 @@ impl BackendWork for Relax<'_> {
     type Output = Vec<[f32; 3]>;
 
     fn run<B: Backend>(&mut self, _name: &str, mut backend: B) -> Result<Vec<[f32; 3]>, GateError> {
-        backend.load(self.fabric, &Params::paper())?;
+        backend.load(self.fabric, self.params)?;
         let chunk = (self.steps / 100).max(1);
         let mut done = 0;
         while done < self.steps {
@@ -129,5 +184,47 @@ impl BackendWork for Relax<'_> {
         }
         let state = backend.state()?;
         Ok(state.positions.iter().map(widen).map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    /// `render`'s arguments alone, as the binary parses them.
+    #[derive(Debug, Parser)]
+    struct Render {
+        #[command(flatten)]
+        args: RenderArgs,
+    }
+
+    fn angles(args: &[&str]) -> (f32, f32) {
+        Render::try_parse_from(std::iter::once("render").chain(args.iter().copied())).unwrap().args.angles()
+    }
+
+    #[test]
+    fn each_side_sets_the_camera_and_explicit_angles_override_it() {
+        assert_eq!(angles(&[]), (0.0, 0.0), "the face, square on, by default");
+        assert_eq!(angles(&["--side", "face"]), (0.0, 0.0));
+        assert_eq!(angles(&["--side", "back"]), (180.0, 0.0), "the back is the face turned half round");
+        assert_eq!(angles(&["--side", "edge"]), (90.0, 0.0), "edge-on along the course");
+        assert_ne!(angles(&["--side", "back"]), angles(&["--side", "face"]));
+        assert_eq!(angles(&["--side", "back", "--elevation", "20"]), (180.0, 20.0));
+        assert_eq!(angles(&["--side", "edge", "--orbit", "45"]), (45.0, 0.0));
+        assert_eq!(angles(&["--orbit", "-30", "--elevation", "15"]), (-30.0, 15.0));
+        assert!(Render::try_parse_from(["render", "--side", "top"]).is_err());
+    }
+
+    #[test]
+    fn render_takes_a_preset_and_a_pattern() {
+        let render = Render::try_parse_from(["render", "--preset", "paper", "--pattern", "seed"]).unwrap();
+        assert_eq!(
+            (render.args.preset, render.args.pattern),
+            (Preset::Paper, PatternArg::Named(yarn_topology::Pattern::Seed))
+        );
+        let render = Render::try_parse_from(["render"]).unwrap();
+        assert_eq!((render.args.preset, render.args.pattern), (Preset::Default, PatternArg::default()));
     }
 }

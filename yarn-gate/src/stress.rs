@@ -245,7 +245,9 @@ pub fn survives<B: Backend>(
     config: &StressConfig,
     seed: u64,
 ) -> Result<bool, GateError> {
-    let fabric = Fabric::from_chart(&Chart::stockinette(config.size.0, config.size.1)?, &Geometry::default())?;
+    // The stability map is measured on the paper's arch, as its recorded
+    // bounds are; the interlooped geometry's map is not measured yet.
+    let fabric = Fabric::from_chart(&Chart::stockinette(config.size.0, config.size.1)?, &Geometry::paper())?;
     backend.load(&fabric, params)?;
     let mut rng = Rng::new(seed);
     let mut state = State::<f64>::at_rest(&fabric);
@@ -254,8 +256,8 @@ pub fn survives<B: Backend>(
     }
     backend.write_state(&state.cast())?;
     let (w, h) = config.size;
-    let grabbed = fabric.stitch_node(w / 2, h / 2, yarn_topology::SEG / 2).unwrap_or(0);
-    let out = fabric.course().cross(&fabric.wale()) * (3.0 * Geometry::default().stitch_width);
+    let grabbed = fabric.head_node(w / 2, h / 2).unwrap_or(0);
+    let out = fabric.course().cross(&fabric.wale()) * (3.0 * Geometry::paper().stitch_width);
     let substeps = (config.duration / params.substep).ceil() as u64;
     const CHUNKS: u64 = 20;
     for k in 1..=CHUNKS {
@@ -467,7 +469,8 @@ pub fn soak<B: Backend>(
     progress: &mut dyn FnMut(u64),
 ) -> Result<SoakReport, GateError> {
     const CHUNK: u64 = 100;
-    let fabric = Fabric::from_chart(&Chart::stockinette(16, 16)?, &Geometry::default())?;
+    // The paper's arch, whose unravelled tethers re-knit (see `survives`).
+    let fabric = Fabric::from_chart(&Chart::stockinette(16, 16)?, &Geometry::paper())?;
     let mut params = Params::default();
     backend.load(&fabric, &params)?;
     let mut rng = Rng::new(seed);
@@ -481,7 +484,7 @@ pub fn soak<B: Backend>(
     let mut next_release = 0;
     let mut grab: Option<Pin> = None;
     let (mut done, mut actions, mut reknits, mut max_energy, mut energy_sum) = (0, 0, 0, 0.0f64, 0.0);
-    let reach = 2.0 * Geometry::default().stitch_width;
+    let reach = 2.0 * Geometry::paper().stitch_width;
     while done < substeps {
         actions += 1;
         match (rng.uniform() * 6.0) as u32 {
@@ -601,7 +604,8 @@ mod tests {
     /// close back to their rest within a few hundred substeps.
     #[test]
     fn reviving_a_drifted_fabric_adds_no_energy_and_reknits() {
-        let fabric = Fabric::from_chart(&Chart::stockinette(16, 16).unwrap(), &Geometry::default()).unwrap();
+        // The paper's arch, whose tethers drift 4–5 units when released.
+        let fabric = Fabric::from_chart(&Chart::stockinette(16, 16).unwrap(), &Geometry::paper()).unwrap();
         let params = Params { gravity: 9.81, ..Params::default() };
         let rest = fabric.positions();
         let pins: Vec<Pin> =

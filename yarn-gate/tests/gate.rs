@@ -88,7 +88,7 @@ fn rest_curl_one_reads_flat() {
         let mut backend = Serial::<f64>::new();
         backend.load(&fabric, &Params { rest_curl, ..Params::paper() }).unwrap();
         backend.advance(3000).unwrap();
-        metrics::curl(&fabric, &backend.state().unwrap().positions).unwrap()
+        metrics::curl_since_assembly(&fabric, &backend.state().unwrap().positions).unwrap()
     };
     let flat = curl_after(1.0);
     assert!(flat.total() < 1e-6, "κ = 1 curled: {flat:?}");
@@ -178,8 +178,11 @@ fn cli_bench_json_has_a_row_per_backend_and_size() {
         }
         assert!(row["ns_per_node_substep"].as_f64().unwrap() > 0.0);
     }
-    assert_eq!(rows[0]["nodes"], 32);
-    assert_eq!(rows[1]["contacts"], 12);
+    // The default preset's patches, whatever its geometry's nodes a stitch.
+    let fabric = |side| Fabric::from_chart(&Chart::stockinette(side, side).unwrap(), &Geometry::default()).unwrap();
+    assert_eq!(rows[0]["nodes"], fabric(2).node_count());
+    assert_eq!(rows[1]["contacts"], fabric(3).contacts().len());
+    assert_eq!((rows[0]["stitches"].as_u64(), rows[1]["size"].as_str()), (Some(4), Some("3x3")));
     assert_eq!(rows[5]["backend"], "rayon-f32x2");
     assert_eq!(rows[5]["threads"], 2);
     assert!(rows.iter().all(|row| row.get("stages").is_none()), "stages only with --stages");
@@ -214,7 +217,8 @@ fn cli_bench_stages_give_each_row_its_passes_by_cpu_timers() {
 }
 
 /// `bench --stages` on the GPU says how it timed the passes, and that a
-/// 16x16 patch (2048 nodes, below the fused threshold) in gather mode with
+/// 16x16 patch of the paper's arch (2048 nodes, below the fused threshold)
+/// in gather mode with
 /// friction runs fused, so its stages were timed unfused. Not 3x3: bench
 /// gives every run about the same node-substeps, so 72 nodes run 277,777
 /// substeps a call, about 6 minutes on lavapipe against 30 s here. Skips,
@@ -223,6 +227,7 @@ fn cli_bench_stages_give_each_row_its_passes_by_cpu_timers() {
 fn cli_gpu_bench_stages_name_their_method_and_the_fused_pass() {
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
         .args(["bench", "--backend", "wgpu,wgpu-fixed", "--sizes", "16", "--stages", "--json", "--repeats", "1"])
+        .args(["--preset", "paper"])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
@@ -250,7 +255,7 @@ fn cli_gpu_bench_stages_name_their_method_and_the_fused_pass() {
 #[test]
 fn cli_gpu_bench_prints_the_floors_per_size() {
     let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
-        .args(["bench", "--backend", "wgpu", "--sizes", "16", "--repeats", "1", "--json"])
+        .args(["bench", "--backend", "wgpu", "--sizes", "16", "--repeats", "1", "--json", "--preset", "paper"])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
@@ -451,8 +456,9 @@ fn cli_render_writes_a_png_and_an_obj() {
     assert_eq!(u32::from_be_bytes(bytes[16..20].try_into().unwrap()), 160);
     assert_eq!(u32::from_be_bytes(bytes[20..24].try_into().unwrap()), 120);
     let mesh = std::fs::read_to_string(&obj).unwrap();
-    // 4x3 stitches: 96 nodes, 7 vertices a ring.
-    assert_eq!(mesh.lines().filter(|l| l.starts_with("v ")).count(), 96 * 7);
+    // A ring of 7 vertices at each node of the default preset's 4x3 patch.
+    let nodes = Fabric::from_chart(&Chart::stockinette(4, 3).unwrap(), &Geometry::default()).unwrap().node_count();
+    assert_eq!(mesh.lines().filter(|l| l.starts_with("v ")).count(), nodes * 7);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

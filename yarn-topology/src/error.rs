@@ -1,7 +1,9 @@
-//! The one error type of this crate: every bad chart or user part names the
-//! offending index or value and what would be valid.
+//! The one error type of this crate: every bad chart, chart text, pattern
+//! name or user part names the offending index or value and what would be
+//! valid.
 
-/// Why a chart or a set of user parts could not become a [`crate::Fabric`].
+/// Why a chart, a chart text or file, a pattern name or a set of user parts
+/// could not become a [`crate::Chart`] or [`crate::Fabric`].
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum TopologyError {
@@ -37,6 +39,53 @@ pub enum TopologyError {
         /// Length of the list supplied.
         got: usize,
     },
+    /// A text chart with no rows of stitches.
+    #[error(
+        "the chart text has no rows (only blank lines or # comments); write at least one row of k and p, the bottom row last"
+    )]
+    EmptyChartText,
+    /// A text chart holds a character that is not a stitch letter.
+    #[error(
+        "chart row {row} (line {line}), column {column}: {found:?} is not a stitch; write k for knit or p for purl (# starts a comment)"
+    )]
+    BadStitch {
+        /// Chart row, counting from 1 at the bottom (the cast-on) as knitters do.
+        row: usize,
+        /// Text line, counting from 1 at the top.
+        line: usize,
+        /// Stitch column, counting from 1 at the left; whitespace is not a column.
+        column: usize,
+        /// The character found.
+        found: char,
+    },
+    /// A row of a text chart is not as wide as the bottom row.
+    #[error(
+        "chart row {row} (line {line}) is {width} stitches wide but row 1, the bottom row, is {expected}; give every row the same number of stitches"
+    )]
+    RaggedRow {
+        /// Chart row, counting from 1 at the bottom (the cast-on) as knitters do.
+        row: usize,
+        /// Text line, counting from 1 at the top.
+        line: usize,
+        /// Stitches in this row.
+        width: usize,
+        /// Stitches in row 1, the bottom row.
+        expected: usize,
+    },
+    /// A chart file could not be read.
+    #[error("cannot read the chart file `{}`: {message}", path.display())]
+    ReadChart {
+        /// The file asked for.
+        path: std::path::PathBuf,
+        /// What the system said (the I/O error's message).
+        message: String,
+    },
+    /// A pattern name that is not one of [`crate::Pattern::ALL`].
+    #[error("unknown pattern `{name}`; use one of: {}", crate::pattern::names())]
+    UnknownPattern {
+        /// The name given.
+        name: String,
+    },
     /// A geometry parameter is not finite or not positive.
     #[error("geometry field `{name}` is {value}; it must be finite and positive")]
     BadGeometry {
@@ -44,6 +93,31 @@ pub enum TopologyError {
         name: &'static str,
         /// The rejected value.
         value: f64,
+    },
+    /// The nodes per loop do not suit the loop shape.
+    #[error(
+        "geometry has {got} nodes per loop; the {shape:?} shape needs exactly 8 (Arch) or an even number of at least 10 (Interlooped)"
+    )]
+    BadNodesPerLoop {
+        /// The shape asked for.
+        shape: crate::LoopShape,
+        /// The nodes per loop asked for.
+        got: usize,
+    },
+    /// An interlooped shape whose loops do not pass through the row below.
+    #[error(
+        "the loops of adjacent rows do not cross: make loop_height larger than stitch_height and roundness at least 1 (the defaults are 9.33, 5.83 and 1.5)"
+    )]
+    NoCrossings,
+    /// A chart asks for a stitch the loop shape cannot knit.
+    #[error(
+        "the paper's arch knits only knit stitches, and stitch ({column}, {row}) is a purl; use the interlooped geometry (Geometry::default) for purl"
+    )]
+    ArchPurl {
+        /// Column of the first purl stitch.
+        column: usize,
+        /// Row of the first purl stitch.
+        row: usize,
     },
     /// User parts with no nodes at all.
     #[error("a fabric needs at least one node")]

@@ -181,6 +181,19 @@ pub struct Contact {
     pub b: u32,
     /// Rest separation d_c: the assembled distance, floored at 2r.
     pub rest: f64,
+    /// Which strand lies toward the technical face in the assembled fabric:
+    /// the node further along course × wale. `None` when the two lie level
+    /// (within 1e-9 of their separation).
+    pub front: Option<Front>,
+}
+
+/// One node of a [`Contact`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Front {
+    /// The contact's node `a`.
+    A,
+    /// The contact's node `b`.
+    B,
 }
 
 /// A node held at a target position.
@@ -238,6 +251,20 @@ impl Boundary {
     #[must_use]
     pub fn with(self, side: Side) -> Boundary {
         Boundary(self.0 | side.bit())
+    }
+
+    /// The sides of the stitch at (`column`, `row`) in a `width` × `height`
+    /// chart.
+    pub(crate) fn of_stitch(column: usize, row: usize, width: usize, height: usize) -> Boundary {
+        [
+            (row == 0, Side::Bottom),
+            (row + 1 == height, Side::Top),
+            (column == 0, Side::Left),
+            (column + 1 == width, Side::Right),
+        ]
+        .into_iter()
+        .filter(|&(on, _)| on)
+        .fold(Boundary::INTERIOR, |sides, (_, side)| sides.with(side))
     }
 
     /// Whether the node lies on `side`.
@@ -302,7 +329,16 @@ pub struct Fabric {
     yarn_radius: f64,
     course: Vec3,
     wale: Vec3,
-    grid: Option<(usize, usize)>,
+    grid: Option<Grid>,
+}
+
+/// How a generated fabric's nodes map to its stitches.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum Grid {
+    /// The paper's arch: `SEG` nodes per stitch.
+    Arch { width: usize, height: usize },
+    /// Interlooped loops with their turns between rows.
+    Loops(crate::loops::Layout),
 }
 
 impl Fabric {
@@ -414,16 +450,28 @@ impl Fabric {
             })
             .collect();
         let floor = 2.0 * yarn_radius;
+        let normal = course.cross(&wale);
         let contacts = checked_contacts
             .into_iter()
-            .map(|(a, b)| Contact { a, b, rest: (positions[b as usize] - positions[a as usize]).norm().max(floor) })
+            .map(|(a, b)| {
+                let apart = positions[b as usize] - positions[a as usize];
+                let ahead = apart.dot(&normal);
+                let front = if ahead.abs() <= 1e-9 * apart.norm() {
+                    None
+                } else if ahead > 0.0 {
+                    Some(Front::B)
+                } else {
+                    Some(Front::A)
+                };
+                Contact { a, b, rest: apart.norm().max(floor), front }
+            })
             .collect();
 
         Ok(Self { positions, yarns, springs, triples, contacts, pins, boundary, yarn_radius, course, wale, grid: None })
     }
 
     /// Assemble a fabric from already-checked generator output.
-    pub(crate) fn assembled(parts: FabricParts, grid: (usize, usize)) -> Result<Self, TopologyError> {
+    pub(crate) fn assembled(parts: FabricParts, grid: Grid) -> Result<Self, TopologyError> {
         let mut fabric = Self::from_parts(parts)?;
         fabric.grid = Some(grid);
         Ok(fabric)
@@ -504,7 +552,48 @@ impl Fabric {
 
     /// `(width, height)` in stitches for a fabric generated from a chart.
     pub fn grid(&self) -> Option<(usize, usize)> {
-        self.grid
+        match self.grid.as_ref()? {
+            Grid::Arch { width, height } => Some((*width, *height)),
+            Grid::Loops(layout) => Some((layout.width, layout.height)),
+        }
+    }
+
+    /// Nodes per loop for a fabric generated from a chart
+    /// ([`crate::Geometry::nodes_per_loop`]).
+    pub fn nodes_per_loop(&self) -> Option<usize> {
+        match self.grid.as_ref()? {
+            Grid::Arch { .. } => Some(crate::SEG),
+            Grid::Loops(layout) => Some(layout.nodes_per_loop),
+        }
+    }
+
+    /// Index of the node at loop phase `p` of the stitch at (`column`,
+    /// `row`) in a generated fabric, or `None` outside the grid or for
+    /// `p >= nodes_per_loop`.
+    ///
+    /// Phases run along the loop in the course direction, whichever way the
+    /// row is laid, and the head is phase `nodes_per_loop / 2`. Phase 0 is
+    /// the low point at the stitch's left end: for the arch, a node of the
+    /// stitch on rows laid left to right and of its left neighbour on rows
+    /// laid right to left; for interlooped loops, the sinker it shares with
+    /// its left neighbour. Phases `1..nodes_per_loop` belong to this stitch
+    /// alone in both shapes.
+    pub fn stitch_node(&self, column: usize, row: usize, p: usize) -> Option<usize> {
+        let (w, h) = self.grid()?;
+        let n = self.nodes_per_loop()?;
+        if column >= w || row >= h || p >= n {
+            return None;
+        }
+        Some(match self.grid.as_ref()? {
+            Grid::Arch { width, .. } => crate::arch::node_index(*width, row, column, p),
+            Grid::Loops(layout) => layout.index(column, row, p),
+        })
+    }
+
+    /// The head node of the stitch at (`column`, `row`): phase
+    /// `nodes_per_loop / 2`.
+    pub fn head_node(&self, column: usize, row: usize) -> Option<usize> {
+        self.stitch_node(column, row, self.nodes_per_loop()? / 2)
     }
 
     /// Replace the fabric's pins, validating them as [`Fabric::from_parts`]

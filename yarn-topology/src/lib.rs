@@ -10,6 +10,12 @@
 //! run of nodes, open or closed, whose springs and joints never join two
 //! yarns.
 //!
+//! A chart comes from a named [`Pattern`] (stockinette, garter, ribs,
+//! seed), from [`Chart::new`], or from a plain-text chart of `k` and `p`
+//! read bottom to top ([`Chart::parse`], [`Chart::from_file`]). Every chart
+//! is the fabric as seen from its technical face; [`StitchKind`] says what
+//! knit and purl mean there.
+//!
 //! It must not know about forces, parameters or backends: those live in
 //! `yarn-model` and below.
 //!
@@ -18,8 +24,15 @@
 //!
 //! let chart = Chart::stockinette(16, 16)?;
 //! let fabric = Fabric::from_chart(&chart, &Geometry::default())?;
-//! assert_eq!(fabric.node_count(), 2048);
-//! assert_eq!(fabric.contacts().len(), 480);
+//! // 16 rows of 16 loops of 24 nodes, a sinker node at each row's end and
+//! // four nodes in each of the 15 turns between rows.
+//! assert_eq!(fabric.node_count(), 16 * (16 * 24 + 1) + 15 * 4);
+//! // Four crossings between each stitch and the loop below it.
+//! assert_eq!(fabric.contacts().len(), 4 * 16 * 15);
+//!
+//! // The paper's arch: 8 nodes a loop, two contacts a stitch.
+//! let paper = Fabric::from_chart(&chart, &Geometry::paper())?;
+//! assert_eq!((paper.node_count(), paper.contacts().len()), (2048, 480));
 //! # Ok::<(), yarn_topology::TopologyError>(())
 //! ```
 //!
@@ -43,19 +56,25 @@
 
 #![forbid(unsafe_code)]
 
+mod arch;
 mod chart;
 mod error;
 mod fabric;
+mod geometry;
+mod loops;
 mod memory;
-mod stockinette;
+mod pattern;
 
+pub use arch::SEG;
 pub use chart::{Chart, StitchKind};
 pub use error::TopologyError;
 pub use fabric::{
-    Boundary, Contact, Fabric, FabricParts, Link, Pin, Side, Spring, Triple, YarnSpan, validate_pins, validate_yarns,
+    Boundary, Contact, Fabric, FabricParts, Front, Link, Pin, Side, Spring, Triple, YarnSpan, validate_pins,
+    validate_yarns,
 };
+pub use geometry::{Geometry, LoopShape};
 pub use memory::{available_memory, check_memory, limit_memory};
-pub use stockinette::{Geometry, SEG};
+pub use pattern::Pattern;
 
 /// A 3-vector of model-unit coordinates.
 pub type Vec3 = nalgebra::Vector3<f64>;

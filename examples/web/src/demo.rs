@@ -9,13 +9,14 @@ use serde::Serialize;
 use yarn_backend_wgpu::{Gpu, Mode, Wgpu, wgpu};
 use yarn_model::{Backend, BackendError, Params, V3};
 use yarn_render::{RenderError, Renderer, View, Yarn};
-use yarn_topology::{Chart, Fabric, Geometry, Pin, SEG, Side, TopologyError, Vec3};
+use yarn_topology::{Chart, Fabric, Geometry, Pattern, Pin, Side, StitchKind, TopologyError, Vec3};
 
 /// The texture format [`Demo::draw`] targets when drawing offscreen (a
 /// canvas uses its own preferred format's sRGB view).
 pub const OFFSCREEN_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 
-/// The names [`Demo::set`] takes.
+/// The names [`Demo::set`] takes: the numeric settings. The pattern is set
+/// by name, with [`Demo::set_pattern`].
 pub const SETTINGS: &str = "stretch, bend, curl, contact, friction, damping, gravity, substeps, width, height";
 
 /// Frames between two contact releases while unravelling or laddering.
@@ -44,13 +45,23 @@ pub struct Settings {
     pub substeps_per_frame: u32,
     /// Gravity on, with the top row held (default: off).
     pub gravity: bool,
+    /// The knit-purl pattern the patch is knitted in (default:
+    /// stockinette, the plain knit the model was fitted to).
+    pub pattern: Pattern,
     /// The model and solver parameters.
     pub params: Params,
 }
 
 impl Default for Settings {
     fn default() -> Self {
-        Self { width: 16, height: 16, substeps_per_frame: 22, gravity: false, params: Params::default() }
+        Self {
+            width: 16,
+            height: 16,
+            substeps_per_frame: 22,
+            gravity: false,
+            pattern: Pattern::Stockinette,
+            params: Params::default(),
+        }
     }
 }
 
@@ -70,6 +81,10 @@ pub enum DemoError {
     /// [`Demo::set`] got a name it does not know.
     #[error("unknown setting `{0}`; the settings are: {SETTINGS}")]
     UnknownSetting(String),
+    /// [`Demo::set`] or [`Demo::setting`] was asked for the pattern, which
+    /// is a name, not a number.
+    #[error("the pattern is a name, not a number: set it with set_pattern, to one of: {}", pattern_names())]
+    PatternIsAName,
     /// [`Demo::set`] got a value outside the setting's range.
     #[error("{name} = {value} is outside {range}")]
     OutOfRange {
@@ -87,6 +102,10 @@ pub enum DemoError {
 pub struct Status {
     /// The adapter's name and backend.
     pub adapter: String,
+    /// The pattern's name ([`Pattern::name`]).
+    pub pattern: &'static str,
+    /// Purl stitches in the patch, as its chart has them.
+    pub purls: usize,
     /// Yarn nodes.
     pub nodes: usize,
     /// Contacts, alive or not.
@@ -131,6 +150,8 @@ pub struct Demo {
     renderer: Renderer,
     settings: Settings,
     fabric: Fabric,
+    /// Purl stitches in the fabric's chart.
+    purls: usize,
     yarn: Yarn,
     view: View,
     alive: Vec<bool>,
@@ -151,7 +172,7 @@ impl Demo {
     pub fn new(gpu: Arc<Gpu>, format: wgpu::TextureFormat, settings: Settings) -> Result<Self, DemoError> {
         let renderer = Renderer::for_format(&gpu, format);
         let mut backend = Wgpu::with_gpu(gpu, Mode::Gather);
-        let (fabric, yarn) = load(&mut backend, &renderer, &settings)?;
+        let (fabric, purls, yarn) = load(&mut backend, &renderer, &settings)?;
         let alive = vec![true; fabric.contacts().len()];
         let view = View { orbit: 0.35, elevation: 0.45, ..View::default() };
         Ok(Self {
@@ -159,6 +180,7 @@ impl Demo {
             renderer,
             settings,
             fabric,
+            purls,
             yarn,
             view,
             alive,
@@ -180,7 +202,7 @@ impl Demo {
 
     /// Load a fresh patch for `settings`, committing them only if it loads.
     fn reload(&mut self, settings: Settings) -> Result<(), DemoError> {
-        let (fabric, yarn) = match load(&mut self.backend, &self.renderer, &settings) {
+        let (fabric, purls, yarn) = match load(&mut self.backend, &self.renderer, &settings) {
             Ok(loaded) => loaded,
             Err(e) => {
                 // The backend may have let go of the old fabric: put it back.
@@ -190,7 +212,7 @@ impl Demo {
             }
         };
         self.alive = vec![true; fabric.contacts().len()];
-        (self.settings, self.fabric, self.yarn) = (settings, fabric, yarn);
+        (self.settings, self.fabric, self.purls, self.yarn) = (settings, fabric, purls, yarn);
         (self.grab, self.release, self.pull, self.frames, self.substeps) = (None, None, 0.0, 0, 0);
         self.upload_pins()
     }
@@ -199,7 +221,7 @@ impl Demo {
     /// `stretch` (k_s), `bend` (k_b), `curl` (κ), `contact` (k_c),
     /// `friction` (μ), `damping` (β); `gravity` (0 off, else on);
     /// `substeps` per frame; the patch's `width` and `height`, which
-    /// reload it.
+    /// reload it. The pattern is a name: see [`Demo::set_pattern`].
     ///
     /// # Errors
     /// An unknown name, a value out of range, or parameters the model
@@ -230,6 +252,7 @@ impl Demo {
                 *(if name == "width" { &mut settings.width } else { &mut settings.height }) = side;
                 return self.reload(settings);
             }
+            "pattern" => return Err(DemoError::PatternIsAName),
             _ => return Err(DemoError::UnknownSetting(name.to_owned())),
         }
         self.backend.set_params(&settings.params)?;
@@ -261,8 +284,21 @@ impl Demo {
             "substeps" => f64::from(settings.substeps_per_frame),
             "width" => settings.width as f64,
             "height" => settings.height as f64,
+            "pattern" => return Err(DemoError::PatternIsAName),
             _ => return Err(DemoError::UnknownSetting(name.to_owned())),
         })
+    }
+
+    /// Knit the patch in the pattern named `name` (one of
+    /// [`Pattern::ALL`]'s names, e.g. `rib-1x1`), which reloads it as a
+    /// size change does.
+    ///
+    /// # Errors
+    /// A name that is no pattern ([`TopologyError::UnknownPattern`], which
+    /// lists them), or a device failure; the demo is unchanged.
+    pub fn set_pattern(&mut self, name: &str) -> Result<(), DemoError> {
+        let pattern = name.parse()?;
+        self.reload(Settings { pattern, ..self.settings })
     }
 
     /// The current settings.
@@ -407,10 +443,18 @@ impl Demo {
         self.upload_pins()
     }
 
+    /// The fabric as built from the chart, at rest: its nodes, contacts
+    /// and grid, for tests and tools.
+    pub fn fabric(&self) -> &Fabric {
+        &self.fabric
+    }
+
     /// What the status line shows.
     pub fn status(&self) -> Status {
         Status {
             adapter: self.backend.gpu().adapter(),
+            pattern: self.settings.pattern.name(),
+            purls: self.purls,
             nodes: self.fabric.node_count(),
             contacts: self.alive.len(),
             alive: self.alive.iter().filter(|&&a| a).count(),
@@ -453,13 +497,28 @@ impl Demo {
     }
 }
 
-/// Build the fabric for `settings` and load it into `backend`.
-fn load(backend: &mut Wgpu, renderer: &Renderer, settings: &Settings) -> Result<(Fabric, Yarn), DemoError> {
-    let fabric = Fabric::from_chart(&Chart::stockinette(settings.width, settings.height)?, &Geometry::default())?;
+/// Build the fabric for `settings` and load it into `backend`; with it, the
+/// number of purl stitches in its chart.
+fn load(backend: &mut Wgpu, renderer: &Renderer, settings: &Settings) -> Result<(Fabric, usize, Yarn), DemoError> {
+    let chart = settings.pattern.chart(settings.width, settings.height)?;
+    let fabric = Fabric::from_chart(&chart, &Geometry::default())?;
     backend.load(&fabric, &settings.params)?;
     let rest: Vec<[f32; 3]> = fabric.positions().iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
     let yarn = renderer.yarn(&rest, fabric.yarns(), fabric.yarn_radius() as f32)?;
-    Ok((fabric, yarn))
+    Ok((fabric, purls(&chart), yarn))
+}
+
+/// The purl stitches in `chart`.
+fn purls(chart: &Chart) -> usize {
+    (0..chart.height())
+        .flat_map(|row| (0..chart.width()).map(move |column| (column, row)))
+        .filter(|&(column, row)| chart.get(column, row) == Some(StitchKind::Purl))
+        .count()
+}
+
+/// Every pattern name, comma separated, for messages.
+fn pattern_names() -> String {
+    Pattern::ALL.map(Pattern::name).join(", ")
 }
 
 /// `value` as a whole number in `range`.
@@ -505,24 +564,54 @@ pub fn unravel_order(fabric: &Fabric, alive: &[bool]) -> Vec<usize> {
     order
 }
 
-/// The contacts holding the heads of `column`, from the top row down: the
-/// order in which a dropped stitch there runs down its wale. Empty for a
-/// fabric that is not a generated grid or a column outside it.
+/// The contacts that hold the loops of `column` to the loops drawn through
+/// them, from the top row down: the order in which a dropped stitch there
+/// runs down its wale. For each row below the top, that is every contact
+/// between one of the loop's own nodes and a node of the row above: the
+/// four crossings of an interlooped loop, or the two tethers of the paper's
+/// arch head. Empty for a fabric that is not a generated grid or a column
+/// outside it.
 pub fn ladder_order(fabric: &Fabric, column: usize) -> Vec<usize> {
-    let rows = fabric.grid().map_or(0, |(_, rows)| rows);
-    (0..rows)
-        .rev()
-        .filter_map(|row| fabric.stitch_node(column, row, SEG / 2))
-        .flat_map(|head| {
-            let head = head as u32;
-            fabric.contacts().iter().enumerate().filter(move |(_, c)| c.a == head || c.b == head).map(|(i, _)| i)
-        })
-        .collect()
+    let (Some((columns, rows)), Some(n)) = (fabric.grid(), fabric.nodes_per_loop()) else { return Vec::new() };
+    if column >= columns {
+        return Vec::new();
+    }
+    // The row of every node on a loop (the turns between rows have none),
+    // and which of them are the column's own: phases 1.. belong to one
+    // stitch alone, phase 0 may be its neighbour's (Fabric::stitch_node).
+    let mut row_of = vec![None; fabric.node_count()];
+    let mut own = vec![false; fabric.node_count()];
+    for row in 0..rows {
+        for c in 0..columns {
+            for p in 0..n {
+                if let Some(node) = fabric.stitch_node(c, row, p) {
+                    row_of[node] = Some(row);
+                    own[node] |= c == column && p > 0;
+                }
+            }
+        }
+    }
+    // The row of the loop held, when `node` is one of the column's own and
+    // `above` lies in the row above it.
+    let held = |node: u32, above: u32| {
+        let row = row_of[node as usize].filter(|_| own[node as usize])?;
+        (row_of[above as usize] == Some(row + 1)).then_some(row)
+    };
+    let mut order: Vec<(usize, usize)> = fabric
+        .contacts()
+        .iter()
+        .enumerate()
+        .filter_map(|(i, c)| Some((held(c.a, c.b).or_else(|| held(c.b, c.a))?, i)))
+        .collect();
+    // Top row first; within a row, in contact order (a stable sort).
+    order.sort_by_key(|&(row, _)| std::cmp::Reverse(row));
+    order.into_iter().map(|(_, i)| i).collect()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use yarn_topology::Contact;
 
     fn patch(w: usize, h: usize) -> Fabric {
         Fabric::from_chart(&Chart::stockinette(w, h).expect("size"), &Geometry::default()).expect("fabric")
@@ -556,19 +645,38 @@ mod tests {
 
     #[test]
     fn a_ladder_runs_down_one_column_from_the_top() {
+        // Interlooped loops (the default geometry): the four crossings with
+        // the loop drawn through it hold each loop below the top row.
         let fabric = patch(5, 4);
+        let n = fabric.nodes_per_loop().expect("a grid");
         let order = ladder_order(&fabric, 2);
-        // Two contacts clasp each head below the top row.
+        assert_eq!(order.len(), 4 * 3);
+        let loop_nodes =
+            |row| (1..n).filter_map(|p| fabric.stitch_node(2, row, p)).map(|i| i as u32).collect::<Vec<_>>();
+        for (four, row) in order.chunks(4).zip((0..3).rev()) {
+            let (below, above) = (loop_nodes(row), loop_nodes(row + 1));
+            for &c in four {
+                let Contact { a, b, .. } = fabric.contacts()[c];
+                assert!(
+                    below.contains(&a) && above.contains(&b) || below.contains(&b) && above.contains(&a),
+                    "contact {c} ({a}, {b}) does not join the loops of rows {row} and {} in column 2",
+                    row + 1
+                );
+            }
+        }
+        assert!(ladder_order(&fabric, 5).is_empty());
+
+        // The paper's arch: two tethers hold each head to the loop above.
+        let arch = Fabric::from_chart(&Chart::stockinette(5, 4).expect("size"), &Geometry::paper()).expect("fabric");
+        let order = ladder_order(&arch, 2);
         assert_eq!(order.len(), 2 * 3);
-        let heads: Vec<u32> =
-            (0..3).rev().map(|row| fabric.stitch_node(2, row, SEG / 2).expect("node") as u32).collect();
+        let heads: Vec<u32> = (0..3).rev().map(|row| arch.head_node(2, row).expect("node") as u32).collect();
         for (pair, head) in order.chunks(2).zip(&heads) {
             for &c in pair {
-                let contact = fabric.contacts()[c];
+                let contact = arch.contacts()[c];
                 assert!(contact.a == *head || contact.b == *head);
             }
         }
-        assert!(ladder_order(&fabric, 9).is_empty());
     }
 
     #[test]

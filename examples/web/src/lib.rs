@@ -1,6 +1,6 @@
 //! The yarnify browser demo: a knitted patch relaxing live on WebGPU, with
-//! controls for the model, grab-and-drag, unravelling and a dropped-stitch
-//! ladder.
+//! controls for the model and the knit-purl pattern, grab-and-drag,
+//! unravelling and a dropped-stitch ladder.
 //!
 //! Everything the page does lives in [`Demo`], which is ordinary Rust over
 //! the `yarn-backend-wgpu` backend and the `yarn-render` tube renderer, the
@@ -16,6 +16,7 @@
 //! let gpu = Gpu::new()?;
 //! let mut demo = Demo::new(gpu, yarnify_web::OFFSCREEN_FORMAT, Settings::default())?;
 //! demo.set("friction", 0.5)?;
+//! demo.set_pattern("rib-1x1")?;
 //! demo.unravel(true)?;
 //! demo.step()?;
 //! println!("{} contacts alive", demo.status().alive);
@@ -28,6 +29,6 @@ mod demo;
 #[cfg(target_arch = "wasm32")]
 mod web;
 #[cfg(target_arch = "wasm32")]
-pub use web::{App, start};
+pub use web::{App, patterns, start};
 
 pub use demo::{Demo, DemoError, OFFSCREEN_FORMAT, SETTINGS, Settings, Status, ladder_order, nearest, unravel_order};

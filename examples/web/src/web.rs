@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use wasm_bindgen::prelude::*;
 use yarn_backend_wgpu::{Gpu, wgpu};
+use yarn_topology::Pattern;
 
 use crate::{Demo, Settings};
 
@@ -45,6 +46,12 @@ pub async fn start(canvas: web_sys::HtmlCanvasElement) -> Result<App, JsError> {
     let mut demo = Demo::new(Arc::clone(&gpu), view_format, Settings::default())?;
     demo.resize(width, height);
     Ok(App { gpu, demo: Rc::new(RefCell::new(demo)), surface, config, view_format })
+}
+
+/// The names of every pattern the demo knits, for the page's selector.
+#[wasm_bindgen]
+pub fn patterns() -> Vec<String> {
+    Pattern::ALL.iter().map(|pattern| pattern.name().to_owned()).collect()
 }
 
 #[wasm_bindgen]
@@ -93,6 +100,20 @@ impl App {
     /// An unknown name.
     pub fn setting(&self, name: &str) -> Result<f64, JsError> {
         Ok(self.demo.borrow().setting(name)?)
+    }
+
+    /// Knit the patch in the pattern named `name`; see
+    /// [`Demo::set_pattern`].
+    ///
+    /// # Errors
+    /// A name that is no pattern; nothing changed.
+    pub fn set_pattern(&self, name: &str) -> Result<(), JsError> {
+        Ok(self.demo.borrow_mut().set_pattern(name)?)
+    }
+
+    /// The name of the pattern the patch is knitted in.
+    pub fn pattern(&self) -> String {
+        self.demo.borrow().settings().pattern.name().to_owned()
     }
 
     /// Start again from the flat patch.
@@ -167,8 +188,8 @@ impl App {
         demo.yarn().project(demo.view(), [x, y, z]).map(Vec::from)
     }
 
-    /// The status as JSON: adapter, nodes, contacts, alive, substeps,
-    /// frames, grabbed, unravelling, laddering.
+    /// The status as JSON: adapter, pattern, purls, nodes, contacts,
+    /// alive, substeps, frames, grabbed, unravelling, laddering.
     pub fn status(&self) -> String {
         serde_json::to_string(&self.demo.borrow().status()).unwrap_or_default()
     }

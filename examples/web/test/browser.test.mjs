@@ -24,8 +24,13 @@ const WEBGPU = [
   '--disable-quic', '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync',
 ];
 const VIEWPORT = { width: 1000, height: 700 };
-// Every setting the page has a control for, and so reads from the address.
+// Every number the page has a control for, and so reads from the address.
 const SETTINGS = ['stretch', 'bend', 'curl', 'contact', 'friction', 'damping', 'substeps', 'gravity', 'width', 'height'];
+// Every pattern, in the selector's order (yarn-topology's Pattern::ALL).
+const PATTERNS = ['stockinette', 'reverse-stockinette', 'garter', 'rib-1x1', 'rib-2x2', 'seed'];
+// Nodes in a w x h patch of the default interlooped geometry: 24 a loop,
+// the sinker closing each row, and 4 in each turn between rows.
+const nodeCount = (w, h) => h * (24 * w + 1) + 4 * (h - 1);
 
 let server;
 let browser;
@@ -87,7 +92,9 @@ test('an adapter is found and frames advance', async () => {
   assert.equal(error, null, `the page found no WebGPU: ${error}`);
   const first = await status();
   assert.ok(first.adapter.length > 0);
-  assert.equal(first.nodes, 16 * 16 * 8);
+  assert.equal(first.nodes, nodeCount(16, 16));
+  assert.equal(first.contacts, 4 * 16 * 15, 'four crossings hold each loop below the top row');
+  assert.deepEqual([first.pattern, first.purls], ['stockinette', 0]);
   await waitFrames(5);
   const later = await status();
   assert.ok(later.substeps >= first.substeps + 5 * 22, `substeps ${first.substeps} -> ${later.substeps}`);
@@ -205,16 +212,73 @@ test('a refused setting names the setting and its limit, and changes nothing', a
   assert.equal(later.substeps - first.substeps, result.before[1] * (later.frames - first.frames));
 });
 
+test('the pattern selector lists every pattern and rebuilds the patch in the one chosen', async () => {
+  const { page: opened, context, errors } = await open('');
+  try {
+    const shown = await opened.evaluate(() => ({
+      options: [...document.querySelectorAll('#pattern option')].map((option) => option.value),
+      value: document.getElementById('pattern').value,
+    }));
+    assert.deepEqual(shown.options, PATTERNS);
+    assert.equal(shown.value, 'stockinette');
+    const before = await opened.evaluate(() => window.yarnify.status());
+    await opened.waitForFunction((n) => window.yarnify.status().frames >= n, before.frames + 5, { timeout: 120_000 });
+    const ran = (await opened.evaluate(() => window.yarnify.status())).frames;
+    await opened.selectOption('#pattern', 'rib-1x1');
+    const after = await opened.evaluate(() => ({ ...window.yarnify.status(), pattern: window.yarnify.app.pattern() }));
+    // A fresh 16 x 16 patch, from frame 0, whose odd columns are purl.
+    assert.equal(after.pattern, 'rib-1x1');
+    assert.equal(after.purls, 8 * 16);
+    assert.deepEqual([after.nodes, after.alive], [nodeCount(16, 16), after.contacts]);
+    assert.ok(after.frames < ran, `frames ${ran} -> ${after.frames}: the patch was not rebuilt`);
+    // The status line names it, and the patch steps on.
+    await opened.waitForFunction(() => /· rib-1x1 · \d+ nodes ·/.test(document.getElementById('status').textContent),
+      null, { timeout: 30_000 });
+    await opened.waitForFunction((n) => window.yarnify.status().frames >= n, after.frames + 5, { timeout: 120_000 });
+    // Back to another: the selector drives it each time.
+    await opened.selectOption('#pattern', 'garter');
+    const garter = await opened.evaluate(() => window.yarnify.status());
+    assert.deepEqual([garter.pattern, garter.purls], ['garter', 16 * 8]);
+    assert.deepEqual(await opened.evaluate(() => window.yarnify.errors), []);
+    assert.deepEqual(errors, []);
+  } finally {
+    await context.close();
+  }
+});
+
+test('a bad pattern in the address is refused by name and the default kept', async () => {
+  const { page: opened, context } = await open('?pattern=nope');
+  try {
+    const message = 'unknown pattern `nope`; use one of: stockinette, reverse-stockinette, garter, rib-1x1, rib-2x2, seed';
+    const shown = await opened.evaluate(() => ({
+      errors: window.yarnify.errors,
+      pattern: window.yarnify.app.pattern(),
+      selected: document.getElementById('pattern').value,
+      status: window.yarnify.status(),
+    }));
+    assert.deepEqual(shown.errors, [message]);
+    assert.equal(shown.pattern, 'stockinette');
+    assert.equal(shown.selected, 'stockinette');
+    const { pattern, purls, nodes } = shown.status;
+    assert.deepEqual([pattern, purls, nodes], ['stockinette', 0, nodeCount(16, 16)]);
+    await opened.waitForFunction((m) => document.getElementById('status').textContent.includes(`error: ${m}`),
+      message, { timeout: 30_000 });
+  } finally {
+    await context.close();
+  }
+});
+
 test('settings in the address start the page there', async () => {
   const given = { stretch: 500, bend: 2.5, curl: 0.2, contact: 400, friction: 0, damping: 20, substeps: 5, gravity: 1, width: 6, height: 4 };
   assert.deepEqual(Object.keys(given).sort(), [...SETTINGS].sort());
-  const search = `?${new URLSearchParams(Object.entries(given).map(([k, v]) => [k, String(v)]))}`;
+  const search = `?${new URLSearchParams([...Object.entries(given).map(([k, v]) => [k, String(v)]), ['pattern', 'seed']])}`;
   const { page: opened, context, errors } = await open(search);
   try {
     const shown = await opened.evaluate((names) => ({
       error: window.yarnify.error,
       errors: window.yarnify.errors,
-      controls: [...document.querySelectorAll('aside input')].map((input) => input.id),
+      controls: [...document.querySelectorAll('aside input, aside select')].map((input) => input.id),
+      pattern: [window.yarnify.app.pattern(), document.getElementById('pattern').value],
       values: Object.fromEntries(names.map((name) => [name, window.yarnify.app.setting(name)])),
       inputs: Object.fromEntries(names.map((name) => {
         const input = document.getElementById(name);
@@ -224,12 +288,14 @@ test('settings in the address start the page there', async () => {
     assert.equal(shown.error, null);
     assert.deepEqual(shown.errors, []);
     // Every control reads the address: a new one needs a value above.
-    assert.deepEqual(shown.controls.sort(), [...SETTINGS].sort());
+    assert.deepEqual(shown.controls.sort(), [...SETTINGS, 'pattern'].sort());
+    assert.deepEqual(shown.pattern, ['seed', 'seed']);
     assert.deepEqual(shown.values, given);
     assert.deepEqual(shown.inputs, given);
-    // The patch is 6 x 4 stitches and steps 5 substeps a frame.
+    // The patch is 6 x 4 stitches of seed stitch, half of them purl, and
+    // steps 5 substeps a frame.
     const state = await opened.evaluate(() => window.yarnify.status());
-    assert.equal(state.nodes, 6 * 4 * 8);
+    assert.deepEqual([state.pattern, state.purls, state.nodes], ['seed', 12, nodeCount(6, 4)]);
     const start = await opened.evaluate(() => window.yarnify.positions());
     await opened.waitForFunction((n) => window.yarnify.status().frames >= n, state.frames + 30, { timeout: 120_000 });
     const later = await opened.evaluate(() => window.yarnify.status());
@@ -268,7 +334,7 @@ test('a bad value in the address is reported and its default kept', async () => 
     assert.deepEqual(shown.errors, messages);
     assert.deepEqual(shown.values, [0.3, 22, 16]);
     assert.deepEqual(shown.inputs, [0.3, 22, 16]);
-    assert.equal(shown.nodes, 16 * 16 * 8);
+    assert.equal(shown.nodes, nodeCount(16, 16));
     // The status line names the last one.
     await opened.waitForFunction((m) => document.getElementById('status').textContent.includes(`error: ${m}`),
       messages[2], { timeout: 30_000 });

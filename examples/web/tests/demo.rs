@@ -1,12 +1,26 @@
 //! The demo's actions on a real adapter (lavapipe in CI): it draws yarn,
-//! a grab drags the fabric, unravelling and laddering release contacts, and
-//! bad settings are refused with nothing changed. The same code runs in the
+//! a grab drags the fabric, unravelling and laddering release contacts, a
+//! pattern rebuilds the patch in its stitches, and bad settings are refused
+//! with nothing changed. The same code runs in the
 //! browser; `test/browser.test.mjs` drives it there.
 
 use std::sync::Arc;
 
 use yarn_backend_wgpu::{Gpu, testing, wgpu};
+use yarn_topology::{Fabric, Front, Pattern};
 use yarnify_web::{Demo, DemoError, OFFSCREEN_FORMAT, SETTINGS, Settings};
+
+/// Nodes in a `w` x `h` patch of the default (interlooped) geometry: 24 a
+/// loop, the sinker that closes each row, and 4 in each turn between rows.
+fn nodes(w: usize, h: usize) -> usize {
+    h * (24 * w + 1) + 4 * (h - 1)
+}
+
+/// Contacts in a `w` x `h` patch: the four crossings of each loop with the
+/// loop drawn through it.
+fn contacts(w: usize, h: usize) -> usize {
+    4 * w * (h - 1)
+}
 
 /// An 8x8 demo and the GPU context it runs on.
 fn demo() -> Option<(Arc<Gpu>, Demo)> {
@@ -135,7 +149,10 @@ fn the_demo_steps_unravels_and_ladders() {
     let Some((_, mut demo)) = demo() else { return };
     steps(&mut demo, 3);
     let status = demo.status();
-    assert_eq!((status.nodes, status.substeps, status.frames), (8 * 8 * 8, 3 * 22, 3));
+    assert_eq!(
+        (status.nodes, status.contacts, status.substeps, status.frames),
+        (nodes(8, 8), contacts(8, 8), 3 * 22, 3)
+    );
     let before = positions(&demo);
 
     // Unravel: contacts are released as frames pass.
@@ -188,6 +205,16 @@ fn bad_settings_are_refused_by_name_and_change_nothing() {
     assert_eq!(refused("stretch", -5.0), "parameter `stretch_stiffness` is -5; it must be greater than 0");
     assert_eq!(refused("curl", 1.5), "parameter `rest_curl` is 1.5; it must be between 0 and 1");
     assert_eq!(refused("damping", f64::NAN), "parameter `damping` is NaN; it must be a finite number");
+    assert_eq!(
+        demo.set_pattern("nope").expect_err("nope").to_string(),
+        "unknown pattern `nope`; use one of: stockinette, reverse-stockinette, garter, rib-1x1, rib-2x2, seed"
+    );
+    assert_eq!(
+        demo.set("pattern", 1.0).expect_err("pattern").to_string(),
+        "the pattern is a name, not a number: set it with set_pattern, to one of: \
+         stockinette, reverse-stockinette, garter, rib-1x1, rib-2x2, seed"
+    );
+    assert!(matches!(demo.setting("pattern"), Err(DemoError::PatternIsAName)));
     assert!(matches!(demo.set("width", 1.5), Err(DemoError::OutOfRange { name: "width", .. })));
     assert!(matches!(demo.set("stretch", -5.0), Err(DemoError::Backend(_))));
     assert_eq!(*demo.settings(), settings);
@@ -196,6 +223,58 @@ fn bad_settings_are_refused_by_name_and_change_nothing() {
     assert_eq!(positions(&demo), moved);
     steps(&mut demo, 1);
     assert_eq!(demo.status().substeps, status.substeps + 22, "still steps");
+}
+
+/// The face order of the four crossings between the loops of rows 0 and 1
+/// in `column`, in contact order: which strand lies toward the face at each.
+fn fronts(fabric: &Fabric, column: usize) -> Vec<Option<Front>> {
+    let n = fabric.nodes_per_loop().expect("a grid");
+    let loop_nodes =
+        |row| (1..n).filter_map(|p| fabric.stitch_node(column, row, p)).map(|i| i as u32).collect::<Vec<_>>();
+    let (below, above) = (loop_nodes(0), loop_nodes(1));
+    let fronts: Vec<_> =
+        fabric.contacts().iter().filter(|c| below.contains(&c.a) && above.contains(&c.b)).map(|c| c.front).collect();
+    assert_eq!(fronts.len(), 4, "four crossings join the loops of rows 0 and 1 in column {column}");
+    fronts
+}
+
+/// Each pattern rebuilds the patch from its own chart: the status counts
+/// its purl stitches, and in a 1x1 rib the strand in front flips at every
+/// crossing of a purl column, against the knit column beside it.
+#[test]
+fn a_pattern_rebuilds_the_patch_in_its_stitches() {
+    let Some((_, mut demo)) = demo() else { return };
+    steps(&mut demo, 2);
+    // 8x8: every stitch purl in reverse stockinette, half of them in the
+    // other patterns but plain stockinette.
+    for (pattern, purls) in Pattern::ALL.into_iter().zip([0, 64, 32, 32, 32, 32]) {
+        let name = pattern.name();
+        demo.set_pattern(name).expect(name);
+        assert_eq!(demo.settings().pattern, pattern);
+        let status = demo.status();
+        assert_eq!((status.pattern, status.purls), (name, purls));
+        // A fresh patch: the same yarn and crossings, from the start.
+        assert_eq!(
+            (status.nodes, status.contacts, status.alive, status.frames, status.substeps),
+            (nodes(8, 8), contacts(8, 8), contacts(8, 8), 0, 0),
+            "{pattern}"
+        );
+    }
+    demo.set_pattern("stockinette").expect("stockinette");
+    let knit = fronts(demo.fabric(), 0);
+    assert!(knit.iter().all(Option::is_some), "every crossing has a strand in front: {knit:?}");
+    assert_eq!(fronts(demo.fabric(), 1), knit, "stockinette is knit in every column");
+    let flipped: Vec<_> = knit.iter().map(|f| f.map(|f| if f == Front::A { Front::B } else { Front::A })).collect();
+    demo.set_pattern("rib-1x1").expect("rib-1x1");
+    assert_eq!(fronts(demo.fabric(), 0), knit, "column 0 of a 1x1 rib is knit");
+    assert_eq!(fronts(demo.fabric(), 1), flipped, "column 1 of a 1x1 rib is purl");
+    steps(&mut demo, 2);
+    assert_eq!(demo.status().substeps, 2 * 22, "the rib steps");
+    // A reset and a size change keep the pattern.
+    demo.reset().expect("reset");
+    assert_eq!(demo.status().purls, 32);
+    demo.set("width", 6.0).expect("width");
+    assert_eq!((demo.status().pattern, demo.status().purls, demo.status().nodes), ("rib-1x1", 3 * 8, nodes(6, 8)));
 }
 
 /// Every setting named in [`SETTINGS`] takes a value and reads it back, and
@@ -225,7 +304,7 @@ fn every_setting_takes_effect_and_reads_back() {
     assert!(matches!(demo.setting("knitting"), Err(DemoError::UnknownSetting(_))));
     let settings = demo.settings();
     assert_eq!((settings.params.rest_curl, settings.params.gravity), (0.2, 9.81));
-    assert_eq!(demo.status().nodes, 6 * 4 * 8);
+    assert_eq!(demo.status().nodes, nodes(6, 4));
     // Gravity holds the top row, and the rest hangs lower than the same
     // frames without gravity leave it; five substeps a frame.
     let rest = positions(&demo);

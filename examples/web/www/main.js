@@ -1,6 +1,6 @@
 // The yarnify browser demo: controls, pointer input and the frame loop
 // around the WebAssembly `App`. Tests read `window.yarnify`.
-import init, { start } from './pkg/yarnify_web.js';
+import init, { patterns, start } from './pkg/yarnify_web.js';
 
 const canvas = document.getElementById('fabric');
 const statusLine = document.getElementById('status');
@@ -50,7 +50,42 @@ function sizeCanvas() {
   return changed;
 }
 
-function buildControls(app) {
+// The pattern selector, first in the patch's fieldset: every pattern the
+// demo knits; choosing one rebuilds the patch, as a size change does.
+function buildPatternSelect(app, rebuilt) {
+  const label = document.createElement('label');
+  label.innerHTML = '<span>pattern</span><select id="pattern"></select>';
+  const select = label.querySelector('select');
+  for (const name of patterns()) select.append(new Option(name, name));
+  select.value = app.pattern();
+  document.getElementById('patch').append(label);
+  // A pattern in the address (e.g. ?pattern=garter) starts there.
+  const given = new URLSearchParams(location.search).get('pattern');
+  if (given !== null) {
+    try {
+      app.set_pattern(given);
+      rebuilt();
+    } catch (e) {
+      showError(String(e.message ?? e));
+    }
+    select.value = app.pattern();
+  }
+  select.addEventListener('change', () => {
+    try {
+      app.set_pattern(select.value);
+      rebuilt();
+      delete statusLine.dataset.error;
+    } catch (e) {
+      showError(String(e.message ?? e));
+    }
+    select.value = app.pattern();
+  });
+}
+
+// `rebuilt` runs after a change that built a fresh patch (its size or
+// pattern).
+function buildControls(app, rebuilt) {
+  buildPatternSelect(app, rebuilt);
   for (const [group, rows] of Object.entries(CONTROLS)) {
     const fieldset = document.getElementById(group);
     for (const [name, text, min, max, step, value] of rows) {
@@ -69,6 +104,7 @@ function buildControls(app) {
         try {
           app.set(name, Number(given));
           last = Number(given);
+          if (group === 'patch') rebuilt();
           if (checkbox) input.checked = last !== 0; else input.value = last;
           if (!checkbox) label.querySelector('output').textContent = String(last);
         } catch (e) {
@@ -80,6 +116,7 @@ function buildControls(app) {
         try {
           app.set(name, v);
           last = v;
+          if (group === 'patch') rebuilt();
           delete statusLine.dataset.error;
         } catch (e) {
           showError(String(e.message ?? e));
@@ -101,16 +138,20 @@ async function run() {
     fail(`WebGPU is present, but no adapter or device could be opened: ${e.message ?? e}`);
     return;
   }
-  buildControls(app);
+  const unravel = document.getElementById('unravel');
+  let unravelling = false;
+  // A fresh patch is not unravelling.
+  const rebuilt = () => {
+    unravelling = false;
+    unravel.textContent = 'Unravel';
+  };
+  buildControls(app, rebuilt);
   // The browser names its adapter to the page, not always to wgpu.
   const info = (await navigator.gpu.requestAdapter())?.info;
   const adapterName = info && (info.description || [info.vendor, info.architecture].filter(Boolean).join(' '));
-  const unravel = document.getElementById('unravel');
-  let unravelling = false;
   document.getElementById('reset').onclick = () => {
     app.reset();
-    unravelling = false;
-    unravel.textContent = 'Unravel';
+    rebuilt();
   };
   unravel.onclick = () => {
     unravelling = !unravelling;
@@ -182,7 +223,8 @@ async function run() {
       if (yarnify.substepsPerSecond < 0) yarnify.substepsPerSecond = 0;
       window0 = { time: now, substeps: status.substeps };
       const error = statusLine.dataset.error ? ` · error: ${statusLine.dataset.error}` : '';
-      statusLine.innerHTML = `${adapterName || status.adapter} · ${status.nodes} nodes · ${status.alive}/${status.contacts} contacts · ` +
+      statusLine.innerHTML = `${adapterName || status.adapter} · ${status.pattern} · ${status.nodes} nodes · ` +
+        `${status.alive}/${status.contacts} contacts · ` +
         `${Math.round(yarnify.substepsPerSecond)} substeps/s · frame ${yarnify.frameMs.toFixed(1)} ms` +
         `<span id="error">${error}</span>`;
     }

@@ -16,6 +16,7 @@ pub mod rest;
 use serde::Serialize;
 use yarn_model::Backend;
 use yarn_model::statics::StaticOptions;
+use yarn_topology::{Fabric, Geometry};
 
 pub use paper::{
     CheckConfig, CheckReport, ENERGY_RISE_TOLERANCE, MIN_ANISOTROPY, MIN_CURL, PULL_STRAIN, SETTLED_SPEED_FRACTION,
@@ -24,17 +25,21 @@ pub use paper::{
 
 use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
-use crate::cli::{Outcome, SUBSTEPS, parse_size, phases, with_bar};
+use crate::cli::{Outcome, PATTERN_HELP, PatternArg, SUBSTEPS, parse_pattern, parse_size, phases, with_bar};
 use crate::preset::Preset;
 
 /// `yarn-gate check`: run the gate once and judge it.
 #[derive(Debug, clap::Args)]
 pub struct CheckArgs {
     /// The model and gate: `default` (the gate at a certified rest) or
-    /// `paper` (the paper's model and its fixed 12,000-substep gate).
+    /// `paper` (the paper's model and its fixed 12,000-substep gate, on
+    /// its 8-node arch, which knits no purl).
     #[arg(long, value_enum, default_value_t = Preset::Default)]
     preset: Preset,
-    /// Patch size in stitches, WIDTHxHEIGHT.
+    #[arg(long, default_value = "stockinette", value_parser = parse_pattern, help = PATTERN_HELP)]
+    pattern: PatternArg,
+    /// Patch size in stitches, WIDTHxHEIGHT (unused with a chart file
+    /// --pattern).
     #[arg(long, default_value = "16x16", value_parser = parse_size)]
     size: (usize, usize),
     /// With `--preset paper`: substeps of free relaxation, and each
@@ -53,6 +58,10 @@ pub struct CheckArgs {
     /// Rest-curl fraction κ; 1 gives a patch that should read flat.
     #[arg(long)]
     rest_curl: Option<f64>,
+    /// Nodes a loop of the default preset's interlooped geometry: even, at
+    /// least 10 (default 24, `Geometry::nodes_per_loop`).
+    #[arg(long)]
+    nodes_per_loop: Option<usize>,
     /// The path to rest: `static` (a frictionless quasi-static solve in
     /// f64; --backend is not used) or `dynamic` (the damped dynamics with
     /// friction on --backend, from the assembled state). Default: static,
@@ -75,16 +84,23 @@ impl CheckArgs {
     ///
     /// # Errors
     /// As [`run_check`], [`run_static_check`], [`rest::run_static`] and
-    /// [`rest::run_dynamic`], and an
-    /// unknown backend.
+    /// [`rest::run_dynamic`]; a chart file that cannot be read or parsed;
+    /// with `--preset paper`, a chart with a purl stitch
+    /// ([`yarn_topology::TopologyError::ArchPurl`]); and an unknown backend.
     pub fn run(&self) -> Result<Outcome, GateError> {
         let mut params = self.preset.params();
         params.rest_curl = self.rest_curl.unwrap_or(params.rest_curl);
-        let (width, height) = self.size;
+        let chart = self.pattern.chart(self.size)?;
         let solver = self.solver.as_deref();
         let backend = self.backend.as_deref().unwrap_or("serial");
         if self.preset == Preset::Paper {
+            // The paper's gate knits stockinette of the chart's size, which
+            // is this chart when it is all knit, and so stays bit for bit
+            // what it was; a purl stitch the arch refuses before anything
+            // runs.
+            Fabric::from_chart(&chart, &Geometry::paper())?;
             let steps = self.steps.unwrap_or(12_000);
+            let (width, height) = (chart.width(), chart.height());
             let config = CheckConfig { width, height, steps, pull_steps: steps, params };
             let report = with_bar(steps, SUBSTEPS, "", |bar| {
                 let progress = &mut phases(bar);
@@ -98,7 +114,9 @@ impl CheckArgs {
         }
         let dynamic = solver == Some("dynamic") || (solver.is_none() && self.backend.is_some());
         let budget = self.steps.unwrap_or(if dynamic { DYNAMIC_BUDGET } else { STATIC_BUDGET });
-        let config = rest::RestConfig { width, height, budget, params, geometry: self.preset.geometry() };
+        let mut geometry = self.preset.geometry();
+        geometry.nodes_per_loop = self.nodes_per_loop.unwrap_or(geometry.nodes_per_loop);
+        let config = rest::RestConfig { chart, budget, params, geometry };
         let report = with_bar(budget, rest::PROGRESS, "", |bar| {
             let progress = &mut phases(bar);
             if dynamic {

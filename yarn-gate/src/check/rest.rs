@@ -37,10 +37,9 @@ pub(crate) const PROGRESS: &str = "{msg:>14} [{bar:40}] {pos}/{len} ({eta})";
 /// What to run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RestConfig {
-    /// Patch width in stitches.
-    pub width: usize,
-    /// Patch height in stitches.
-    pub height: usize,
+    /// The patch's stitches; at least 3×3, so that it has interior
+    /// stitches to fit a mid-plane to.
+    pub chart: Chart,
     /// The most work each relaxation and hold may take: substeps, or force
     /// evaluations.
     pub budget: u64,
@@ -223,10 +222,17 @@ pub fn run_dynamic<B: Backend>(
 }
 
 fn patch(config: &RestConfig) -> Result<Fabric, GateError> {
-    if config.width < 3 || config.height < 3 {
-        return Err(GateError::TooSmall { width: config.width, height: config.height });
+    if config.chart.width() < 3 || config.chart.height() < 3 {
+        return Err(config.too_small());
     }
-    Ok(Fabric::from_chart(&Chart::stockinette(config.width, config.height)?, &config.geometry)?)
+    Ok(Fabric::from_chart(&config.chart, &config.geometry)?)
+}
+
+impl RestConfig {
+    /// The error of a patch with no interior stitches, naming its size.
+    fn too_small(&self) -> GateError {
+        GateError::TooSmall { width: self.chart.width(), height: self.chart.height() }
+    }
 }
 
 /// The force on the nodes of `fabric`'s far grip along `axis`, summed.
@@ -317,7 +323,7 @@ impl Probe {
 fn figures(fabric: &Fabric, state: &State<f64>, probes: [&Hold; 2]) -> Result<Figures, GateError> {
     let (width, height) = fabric.grid().unwrap_or((0, 0));
     let too_small = GateError::TooSmall { width, height };
-    let curl = metrics::curl(fabric, &state.positions).ok_or(too_small.clone())?;
+    let curl = metrics::curl_since_assembly(fabric, &state.positions).ok_or(too_small.clone())?;
     let Extent { width, height } = metrics::extent(fabric, &state.positions).ok_or(too_small)?;
     Ok(Figures {
         curl_course: curl.course,
@@ -340,8 +346,7 @@ fn run<S: Settle>(
     let ruler = Model::<f64>::new(fabric, &config.params)?;
     let start = State::at_rest(fabric);
     let relaxed = settler.settle(&start, &[], budget, &mut |w| progress("relax", w, budget))?;
-    let extent = metrics::extent(fabric, &relaxed.state.positions)
-        .ok_or(GateError::TooSmall { width: config.width, height: config.height })?;
+    let extent = metrics::extent(fabric, &relaxed.state.positions).ok_or_else(|| config.too_small())?;
     let course = Probe::new(&mut settler, fabric, &relaxed, Axis::Course, extent.width, budget, progress)?;
     let wale = Probe::new(&mut settler, fabric, &relaxed, Axis::Wale, extent.height, budget, progress)?;
     let holds = [course.read(&ruler, fabric), wale.read(&ruler, fabric)];
@@ -362,8 +367,7 @@ fn run<S: Settle>(
     };
     let doubling = Doubling { rest: relaxed_twice.settled(), figures: twice, moved };
 
-    let assembled = metrics::extent(fabric, fabric.positions())
-        .ok_or(GateError::TooSmall { width: config.width, height: config.height })?;
+    let assembled = metrics::extent(fabric, fabric.positions()).ok_or_else(|| config.too_small())?;
     let (softer, softer_by) = if holds[0].stiffness <= holds[1].stiffness {
         (Axis::Course, holds[1].stiffness / holds[0].stiffness)
     } else {
@@ -375,7 +379,7 @@ fn run<S: Settle>(
         path,
         backend: settler.name(),
         unit: settler.unit(),
-        size: format!("{}x{}", config.width, config.height),
+        size: format!("{}x{}", config.chart.width(), config.chart.height()),
         nodes: fabric.node_count(),
         contacts: fabric.contacts().len(),
         certified: relaxed.certificate.certified,
@@ -526,7 +530,8 @@ mod tests {
     #[test]
     fn both_paths_certify_a_patch_at_rest_and_its_holds() {
         let params = Params { rest_curl: 1.0, friction: 0.0, ..Params::paper() };
-        let config = RestConfig { width: 4, height: 4, budget: 400_000, params, geometry: Geometry::paper() };
+        let chart = Chart::stockinette(4, 4).unwrap();
+        let config = RestConfig { chart, budget: 400_000, params, geometry: Geometry::paper() };
         let statics = run_static(&config, &mut |_, _, _| {}).unwrap();
         let dynamics = run_dynamic(Serial::<f64>::new(), &config, &mut |_, _, _| {}).unwrap();
         for report in [&statics, &dynamics] {
@@ -544,5 +549,35 @@ mod tests {
         }
         assert_eq!((statics.path, dynamics.path), (Path::Static, Path::Dynamic));
         assert_eq!((statics.unit, dynamics.unit), ("force evaluations", "substeps"));
+    }
+
+    /// The gate builds its patch from the chart it is given: a seed chart's
+    /// purl legs lie behind the face as assembled, where stockinette's lie
+    /// in front, so the two read different edges before any work; and a
+    /// chart too narrow for interior stitches is refused by its size.
+    #[test]
+    fn the_gate_at_rest_knits_the_chart_it_is_given() {
+        let run = |pattern: yarn_topology::Pattern, (w, h)| {
+            let chart = pattern.chart(w, h).unwrap();
+            let config = RestConfig { chart, budget: 1, params: Params::default(), geometry: Geometry::default() };
+            run_static(&config, &mut |_, _, _| {})
+        };
+        let seed = run(yarn_topology::Pattern::Seed, (4, 3)).unwrap();
+        let plain = run(yarn_topology::Pattern::Stockinette, (4, 3)).unwrap();
+        let fabric =
+            Fabric::from_chart(&yarn_topology::Pattern::Seed.chart(4, 3).unwrap(), &Geometry::default()).unwrap();
+        assert_eq!(
+            (seed.size.as_str(), seed.nodes, seed.contacts),
+            ("4x3", fabric.node_count(), fabric.contacts().len())
+        );
+        println!("seed {:?}\nstockinette {:?}", seed.figures, plain.figures);
+        // Curl is measured since assembly, and one evaluation barely moves
+        // the patch; its stiffness already tells the charts apart.
+        assert_ne!(
+            (seed.figures.stiffness_course, seed.figures.stiffness_wale),
+            (plain.figures.stiffness_course, plain.figures.stiffness_wale),
+            "the same patch whatever the chart"
+        );
+        assert_eq!(run(yarn_topology::Pattern::Rib1x1, (2, 5)), Err(GateError::TooSmall { width: 2, height: 5 }));
     }
 }

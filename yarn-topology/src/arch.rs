@@ -1,6 +1,7 @@
-//! The stockinette generator (SPEC §2): one loop of `SEG` nodes per stitch,
-//! rows laid serpentine, and two contacts where each head is clasped by the
-//! feet of the loop above.
+//! `Fabric::from_chart`, and the paper's arch generator (SPEC §2): one loop
+//! of `SEG` nodes per stitch, rows laid serpentine, and two contacts where
+//! each head is clasped by the feet of the loop above. It is the `paper`
+//! preset's geometry ([`crate::LoopShape::Arch`]); it knits stockinette only.
 //!
 //! The arch profile is a function of a loop phase p in [0, SEG): p = 0 is the
 //! low point between loops, p = SEG/2 the head. Rows laid right to left use
@@ -10,8 +11,11 @@
 
 use std::f64::consts::PI;
 
-use crate::fabric::{Boundary, FabricParts, Side};
-use crate::{Chart, Contact, Fabric, Spring, StitchKind, TopologyError, Triple, Vec3, available_memory, check_memory};
+use crate::fabric::{Boundary, FabricParts, Grid, MAX_NODES};
+use crate::{
+    Chart, Contact, Fabric, Geometry, LoopShape, Spring, StitchKind, TopologyError, Triple, Vec3, available_memory,
+    check_memory, loops,
+};
 
 /// What building a fabric holds per node at most: positions and boundary
 /// flags in the parts and again in the fabric, a spring, a triple and (at
@@ -30,55 +34,7 @@ const HEAD: usize = SEG / 2;
 /// lowest nodes that belong to this loop in both row directions.
 const FEET: [usize; 2] = [1, SEG - 1];
 
-/// The assembled loop geometry of a stockinette cell (SPEC §1, paper Table 1).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Geometry {
-    /// Stitch width w_s along the course (default: 5.0).
-    pub stitch_width: f64,
-    /// Stitch height h_s up the wale (default: 4.2).
-    pub stitch_height: f64,
-    /// Loop arch height h_loop; must exceed the stitch height so each head
-    /// reaches into the row above (default: 4.8).
-    pub loop_height: f64,
-    /// Head offset toward the technical face (+z); the feet go back by the
-    /// same profile (default: 1.6).
-    pub head_offset: f64,
-    /// Yarn radius r; contacts rest no closer than 2r (default: 0.9).
-    pub yarn_radius: f64,
-}
-
-impl Default for Geometry {
-    /// The default geometry. It is the paper's ([`Geometry::paper`]) until
-    /// real knitted loops replace the arch (SPEC §7).
-    fn default() -> Self {
-        Self::paper()
-    }
-}
-
 impl Geometry {
-    /// The `paper` preset: the paper's Table 1 gauge and its 8-node arch
-    /// (SPEC §1–2). It keeps reproducing the paper's figures.
-    pub fn paper() -> Self {
-        Self { stitch_width: 5.0, stitch_height: 4.2, loop_height: 4.8, head_offset: 1.6, yarn_radius: 0.9 }
-    }
-}
-
-impl Geometry {
-    fn validate(&self) -> Result<(), TopologyError> {
-        for (name, value) in [
-            ("stitch_width", self.stitch_width),
-            ("stitch_height", self.stitch_height),
-            ("loop_height", self.loop_height),
-            ("head_offset", self.head_offset),
-            ("yarn_radius", self.yarn_radius),
-        ] {
-            if !(value.is_finite() && value > 0.0) {
-                return Err(TopologyError::BadGeometry { name, value });
-            }
-        }
-        Ok(())
-    }
-
     /// Position of loop phase `p` in the cell whose lower-left corner is at
     /// (x0, y0): the arch rises as sin² to the head, and the out-of-plane
     /// profile is a raised cosine, forward at the head and back at the feet.
@@ -88,78 +44,81 @@ impl Geometry {
         Vec3::new(
             x0 + self.stitch_width * p as f64 / SEG as f64,
             y0 + self.loop_height * rise,
-            -self.head_offset * (2.0 * phase).cos(),
+            -self.depth * (2.0 * phase).cos(),
         )
     }
 }
 
 impl Fabric {
-    /// Generate the fabric of a stitch chart with the given loop geometry.
+    /// Generate the fabric of a stitch chart with the given loop geometry:
+    /// interlooped loops (the default) or the paper's arch
+    /// ([`LoopShape`]).
     ///
-    /// Node `SEG * k + s` is the s-th node of the k-th loop along the yarn;
-    /// row ρ holds loops `ρW .. (ρ+1)W`, left to right for even ρ and right
-    /// to left for odd ρ.
+    /// Rows are laid serpentine, row 0 left to right, row 1 right to left,
+    /// and so on; [`Fabric::stitch_node`] finds a stitch's nodes.
     ///
     /// # Errors
-    /// [`TopologyError::BadGeometry`] for a non-positive or non-finite
-    /// geometry field.
+    /// [`TopologyError::BadGeometry`] or [`TopologyError::BadNodesPerLoop`]
+    /// for a geometry that does not validate, [`TopologyError::TooLarge`]
+    /// when the fabric would exceed the node limit,
+    /// [`TopologyError::OutOfMemory`] when it would not fit in memory, and
+    /// [`TopologyError::NoCrossings`] for an interlooped shape whose loops
+    /// do not reach through the row below.
     pub fn from_chart(chart: &Chart, geometry: &Geometry) -> Result<Self, TopologyError> {
         geometry.validate()?;
         let (w, h) = (chart.width(), chart.height());
-        check_memory("the fabric (bytes)", (w * h * SEG) as u64 * FABRIC_BYTES_PER_NODE, available_memory())?;
-        let mut positions = Vec::with_capacity(w * h * SEG);
-        let mut boundary = Vec::with_capacity(w * h * SEG);
-        for row in 0..h {
-            for k in 0..w {
-                let column = column_of(row, k, w);
-                // Only knit exists today; purl will mirror the z profile here.
-                let StitchKind::Knit = chart.get(column, row).unwrap_or_default();
-                let x0 = column as f64 * geometry.stitch_width;
-                let y0 = row as f64 * geometry.stitch_height;
-                for s in 0..SEG {
-                    positions.push(geometry.node(x0, y0, phase_of(row, s)));
-                }
-                let mut sides = Boundary::INTERIOR;
-                for (on, side) in [
-                    (row == 0, Side::Bottom),
-                    (row + 1 == h, Side::Top),
-                    (column == 0, Side::Left),
-                    (column + 1 == w, Side::Right),
-                ] {
-                    if on {
-                        sides = sides.with(side);
-                    }
-                }
-                boundary.extend([sides; SEG]);
-            }
-        }
-        let mut contacts = Vec::with_capacity(2 * w * h.saturating_sub(1));
-        for row in 0..h.saturating_sub(1) {
-            for column in 0..w {
-                let head = node_index(w, row, column, HEAD);
-                for foot in FEET {
-                    contacts.push([head as u32, node_index(w, row + 1, column, foot) as u32]);
-                }
-            }
-        }
-        let parts = FabricParts {
-            positions,
-            contacts,
-            boundary,
-            yarn_radius: Some(geometry.yarn_radius),
-            ..FabricParts::default()
+        let nodes = match geometry.shape {
+            LoopShape::Arch => w.checked_mul(h).and_then(|s| s.checked_mul(SEG)),
+            LoopShape::Interlooped => Some(loops::layout(chart, geometry).node_count()),
         };
-        Fabric::assembled(parts, (w, h))
+        let nodes = match nodes {
+            Some(n) if n <= MAX_NODES => n,
+            _ => return Err(TopologyError::TooLarge { width: w, height: h, max_nodes: MAX_NODES }),
+        };
+        check_memory("the fabric (bytes)", nodes as u64 * FABRIC_BYTES_PER_NODE, available_memory())?;
+        match geometry.shape {
+            LoopShape::Arch => Fabric::assembled(arch(chart, geometry)?, Grid::Arch { width: w, height: h }),
+            LoopShape::Interlooped => {
+                let (parts, layout) = loops::build(chart, geometry)?;
+                Fabric::assembled(parts, Grid::Loops(layout))
+            }
+        }
     }
+}
 
-    /// Index of the node at loop phase `p` of the stitch at (`column`, `row`)
-    /// in a generated fabric, or `None` outside the grid or for `p >= SEG`.
-    /// Phase 0 is the low point at the cell's left end on rows laid left to
-    /// right, and at its right end on rows laid right to left.
-    pub fn stitch_node(&self, column: usize, row: usize, p: usize) -> Option<usize> {
-        let (w, h) = self.grid()?;
-        (column < w && row < h && p < SEG).then(|| node_index(w, row, column, p))
+/// The paper's arch fabric (SPEC §2): node `SEG * k + s` is the s-th node
+/// of the k-th loop along the yarn; row ρ holds loops `ρW .. (ρ+1)W`, left
+/// to right for even ρ and right to left for odd ρ.
+fn arch(chart: &Chart, geometry: &Geometry) -> Result<FabricParts, TopologyError> {
+    let (w, h) = (chart.width(), chart.height());
+    for row in 0..h {
+        if let Some(column) = (0..w).find(|&c| chart.get(c, row) == Some(StitchKind::Purl)) {
+            return Err(TopologyError::ArchPurl { column, row });
+        }
     }
+    let mut positions = Vec::with_capacity(w * h * SEG);
+    let mut boundary = Vec::with_capacity(w * h * SEG);
+    for row in 0..h {
+        for k in 0..w {
+            let column = column_of(row, k, w);
+            let x0 = column as f64 * geometry.stitch_width;
+            let y0 = row as f64 * geometry.stitch_height;
+            for s in 0..SEG {
+                positions.push(geometry.node(x0, y0, phase_of(row, s)));
+            }
+            boundary.extend([Boundary::of_stitch(column, row, w, h); SEG]);
+        }
+    }
+    let mut contacts = Vec::with_capacity(2 * w * h.saturating_sub(1));
+    for row in 0..h.saturating_sub(1) {
+        for column in 0..w {
+            let head = node_index(w, row, column, HEAD);
+            for foot in FEET {
+                contacts.push([head as u32, node_index(w, row + 1, column, foot) as u32]);
+            }
+        }
+    }
+    Ok(FabricParts { positions, contacts, boundary, yarn_radius: Some(geometry.yarn_radius), ..FabricParts::default() })
 }
 
 /// Column of the k-th loop laid in `row`.
@@ -174,7 +133,7 @@ fn phase_of(row: usize, s: usize) -> usize {
 
 /// Node index of phase `p` (1..SEG-1 on odd rows, 0..SEG-1 on even rows; the
 /// phases FEET and HEAD exist on both) in the stitch at (`column`, `row`).
-fn node_index(width: usize, row: usize, column: usize, p: usize) -> usize {
+pub(crate) fn node_index(width: usize, row: usize, column: usize, p: usize) -> usize {
     let k = column_of(row, column, width);
     let s = phase_of(row, p) % SEG;
     (row * width + k) * SEG + s
@@ -183,9 +142,10 @@ fn node_index(width: usize, row: usize, column: usize, p: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Side;
 
     fn patch(w: usize, h: usize) -> Fabric {
-        Fabric::from_chart(&Chart::stockinette(w, h).unwrap(), &Geometry::default()).unwrap()
+        Fabric::from_chart(&Chart::stockinette(w, h).unwrap(), &Geometry::paper()).unwrap()
     }
 
     #[test]
@@ -280,7 +240,7 @@ mod tests {
         assert_eq!(Chart::stockinette(0, 3), Err(TopologyError::EmptyChart { width: 0, height: 3 }));
         assert!(matches!(Chart::stockinette(usize::MAX, 2), Err(TopologyError::TooLarge { .. })));
         assert!(matches!(Chart::new(2, 2, vec![StitchKind::Knit; 3]), Err(TopologyError::ChartShape { got: 3, .. })));
-        let geometry = Geometry { loop_height: f64::NAN, ..Geometry::default() };
+        let geometry = Geometry { loop_height: f64::NAN, ..Geometry::paper() };
         let err = Fabric::from_chart(&Chart::stockinette(2, 2).unwrap(), &geometry).unwrap_err();
         assert!(matches!(err, TopologyError::BadGeometry { name: "loop_height", .. }));
     }
