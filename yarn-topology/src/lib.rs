@@ -41,10 +41,10 @@
 //! ```
 //! use yarn_topology::{Fabric, FabricParts, Vec3, YarnSpan};
 //!
-//! let positions = (0..12).map(|i| Vec3::new(f64::from(i % 6), f64::from(i / 6) * 3.0, 0.0)).collect();
+//! let strands = (0..12).map(|i| Vec3::new(f64::from(i % 6), f64::from(i / 6) * 3.0, 0.0));
 //! let ring = (0..6).map(|i| f64::from(i) * std::f64::consts::TAU / 6.0).map(|t| Vec3::new(t.cos(), 6.0 + t.sin(), 0.0));
 //! let fabric = Fabric::from_parts(FabricParts {
-//!     positions: positions.into_iter().chain(ring).collect(),
+//!     positions: strands.chain(ring).collect(),
 //!     yarns: vec![YarnSpan::open(0..6), YarnSpan::open(6..12), YarnSpan::closed(12..18)],
 //!     contacts: vec![[2, 8], [11, 15]],
 //!     ..FabricParts::default()
