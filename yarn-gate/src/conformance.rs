@@ -556,16 +556,20 @@ pub mod strategy {
         prop_oneof![2 => arch, 2 => loops, 1 => strip, 1 => parts]
     }
 
-    /// A `width` × `height` chart of knits and purls drawn from `seed`'s
-    /// bits (a new xorshift draw each 64 stitches).
+    /// A `width` × `height` chart of knits and purls, each stitch a fair
+    /// coin: the bits of SplitMix64's draws from `seed`, one draw per 64
+    /// stitches, so neighbouring seeds give unrelated charts.
     pub fn mixed_chart(width: usize, height: usize, seed: u64) -> Result<Chart, TopologyError> {
-        let mut bits = seed | 1;
+        let mut state = seed;
+        let mut bits = 0;
         let stitches = (0..width * height)
             .map(|i| {
                 if i % 64 == 0 {
-                    bits ^= bits << 13;
-                    bits ^= bits >> 7;
-                    bits ^= bits << 17;
+                    state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+                    let mut z = state;
+                    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+                    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+                    bits = z ^ (z >> 31);
                 }
                 if bits >> (i % 64) & 1 == 1 { StitchKind::Purl } else { StitchKind::Knit }
             })

@@ -1,7 +1,8 @@
 //! `gpucheck`: the GPU backend against `Serial<f32>` on the chosen adapter,
 //! for each accumulation mode: the force field after one accumulation and
-//! a 120-substep trajectory of the gate's patch; and the renderer, drawing
-//! the gather trajectory's end.
+//! a 120-substep trajectory, on the gate's stockinette patch and on a
+//! random mix of knit and purl stitches of the same size; and the renderer,
+//! drawing the stockinette gather trajectory's end.
 //!
 //! This module owns the bounds, the report and the command
 //! ([`GpucheckArgs`]). It opens the one adapter itself rather than going
@@ -14,11 +15,12 @@ use yarn_backend_cpu::Serial;
 use yarn_backend_wgpu::{FIXED_POINT_SCALE, Gpu, Mode, Wgpu};
 use yarn_model::{Backend, Params, V3, widen};
 use yarn_render::{Renderer, View};
-use yarn_topology::{Chart, Fabric, Geometry};
+use yarn_topology::{Chart, Fabric, Geometry, StitchKind};
 
 use crate::GateError;
 use crate::cli::{Outcome, parse_size};
 use crate::conformance::TRAJECTORY_STEPS;
+use crate::conformance::strategy::mixed_chart;
 
 /// `yarn-gate gpucheck`: check this machine's adapter.
 #[derive(Debug, clap::Args)]
@@ -26,6 +28,9 @@ pub struct GpucheckArgs {
     /// Patch size in stitches, WIDTHxHEIGHT.
     #[arg(long, default_value = "16x16", value_parser = parse_size)]
     size: (usize, usize),
+    /// Seed of the random knit and purl chart checked beside stockinette.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
@@ -38,7 +43,7 @@ impl GpucheckArgs {
     /// # Errors
     /// No adapter, or as [`run_gpucheck`].
     pub fn run(&self) -> Result<Outcome, GateError> {
-        let report = run_gpucheck(&Gpu::new()?, self.size.0, self.size.1)?;
+        let report = run_gpucheck(&Gpu::new()?, self.size, self.seed)?;
         Ok(Outcome::json_or(&report, self.json, || report.table()).verdict(report.pass))
     }
 }
@@ -87,6 +92,23 @@ pub struct ModeReport {
 /// prints the coverage beside this bound.
 pub const MIN_RENDER_COVERAGE: f64 = 0.35;
 
+/// Both modes on one chart.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ChartReport {
+    /// The chart: `"stockinette"`, or `"mixed, seed S"` for the random
+    /// knit and purl chart.
+    pub chart: String,
+    /// Its purl stitches.
+    pub purls: usize,
+    /// Nodes in the patch.
+    pub nodes: usize,
+    /// `Serial<f32>`'s own force error against `Serial<f64>`, relative to
+    /// the largest force: the f32 rounding any f32 backend is bound by.
+    pub serial_f32_force_rel_err_vs_f64: f64,
+    /// One report per mode.
+    pub modes: Vec<ModeReport>,
+}
+
 /// The whole check.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GpuCheckReport {
@@ -97,16 +119,11 @@ pub struct GpuCheckReport {
     pub fused_fma: bool,
     /// Patch size in stitches.
     pub size: String,
-    /// Nodes in the patch.
-    pub nodes: usize,
-    /// `Serial<f32>`'s own force error against `Serial<f64>`, relative to
-    /// the largest force: the f32 rounding any f32 backend is bound by.
-    pub serial_f32_force_rel_err_vs_f64: f64,
-    /// One report per mode.
-    pub modes: Vec<ModeReport>,
-    /// The fraction of a 640x480 frame of the patch that is yarn.
+    /// Stockinette, then the random knit and purl chart.
+    pub charts: Vec<ChartReport>,
+    /// The fraction of a 640x480 frame of the stockinette patch that is yarn.
     pub render_coverage: f64,
-    /// Every mode passes.
+    /// Every mode passes on every chart, and the drawing covers enough.
     pub pass: bool,
 }
 
@@ -118,22 +135,53 @@ fn max_diff_f64(a: &[V3<f32>], b: &[V3<f64>]) -> f64 {
     a.iter().zip(b).map(|(p, q)| (widen(p) - q).norm()).fold(0.0, f64::max)
 }
 
-/// Run the check on `gpu` with a `width`×`height` patch under the gate's
-/// parameters.
+/// Run the check on `gpu` under the gate's parameters with a patch of
+/// `size` stitches: stockinette, then [`mixed_chart`]`(size, seed)`.
 ///
 /// # Errors
-/// When the patch cannot be built or a backend fails.
-pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCheckReport, GateError> {
-    let fabric = Fabric::from_chart(&Chart::stockinette(width, height)?, &Geometry::default())?;
+/// When a patch cannot be built or a backend fails.
+pub fn run_gpucheck(gpu: &Arc<Gpu>, (width, height): (usize, usize), seed: u64) -> Result<GpuCheckReport, GateError> {
+    let geometry = Geometry::default();
+    let stockinette_fabric = Fabric::from_chart(&Chart::stockinette(width, height)?, &geometry)?;
+    let (stockinette, drawn) = check_chart(gpu, "stockinette".into(), 0, &stockinette_fabric)?;
+    let mixed = mixed_chart(width, height, seed)?;
+    let purls = mixed.count(StitchKind::Purl);
+    let (mixed, _) = check_chart(gpu, format!("mixed, seed {seed}"), purls, &Fabric::from_chart(&mixed, &geometry)?)?;
+    let view = View { width: 640, height: 480, ..View::default() };
+    let r = geometry.yarn_radius as f32;
+    let render_coverage = Renderer::new(gpu)
+        .render(&drawn, stockinette_fabric.yarns(), r, &view)
+        .map_err(|e| GateError::Render(e.to_string()))?
+        .coverage();
+    let charts = vec![stockinette, mixed];
+    let pass = charts.iter().flat_map(|c| &c.modes).all(|m| m.pass) && render_coverage > MIN_RENDER_COVERAGE;
+    Ok(GpuCheckReport {
+        adapter: gpu.adapter(),
+        fused_fma: gpu.fused_fma(),
+        size: format!("{width}x{height}"),
+        charts,
+        render_coverage,
+        pass,
+    })
+}
+
+/// Both modes against `Serial<f32>` on `fabric`, and the gather
+/// trajectory's end positions for drawing.
+fn check_chart(
+    gpu: &Arc<Gpu>,
+    chart: String,
+    purls: usize,
+    fabric: &Fabric,
+) -> Result<(ChartReport, Vec<[f32; 3]>), GateError> {
     let params = Params::paper();
     let mut reference = Serial::<f32>::new();
-    reference.load(&fabric, &params)?;
+    reference.load(fabric, &params)?;
     let want_forces = reference.forces()?;
     reference.advance(TRAJECTORY_STEPS)?;
     let want = reference.state()?;
     let largest = want_forces.iter().map(|f| widen(f).norm()).fold(0.0, f64::max).max(1.0);
     let mut truth = Serial::<f64>::new();
-    truth.load(&fabric, &params)?;
+    truth.load(fabric, &params)?;
     let true_forces = truth.forces()?;
     let true_largest = true_forces.iter().map(|f| f.norm()).fold(0.0, f64::max).max(1.0);
     let r = fabric.yarn_radius();
@@ -141,7 +189,7 @@ pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCh
     let mut drawn = Vec::new();
     for mode in [Mode::Gather, Mode::FixedPointAtomic] {
         let mut backend = Wgpu::with_gpu(Arc::clone(gpu), mode);
-        backend.load(&fabric, &params)?;
+        backend.load(fabric, &params)?;
         let forces = backend.forces()?;
         let force_max_err = max_diff(&forces, &want_forces);
         let force_rel_err_vs_f64 = max_diff_f64(&forces, &true_forces) / true_largest;
@@ -167,51 +215,47 @@ pub fn run_gpucheck(gpu: &Arc<Gpu>, width: usize, height: usize) -> Result<GpuCh
             pass: force_rel_err <= force_bound && trajectory_max_err <= trajectory_bound,
         });
     }
-    let view = View { width: 640, height: 480, ..View::default() };
-    let render_coverage = Renderer::new(gpu)
-        .render(&drawn, fabric.yarns(), r as f32, &view)
-        .map_err(|e| GateError::Render(e.to_string()))?
-        .coverage();
-    let pass = modes.iter().all(|m| m.pass) && render_coverage > MIN_RENDER_COVERAGE;
-    Ok(GpuCheckReport {
-        adapter: gpu.adapter(),
-        fused_fma: gpu.fused_fma(),
-        size: format!("{width}x{height}"),
+    let report = ChartReport {
+        chart,
+        purls,
         nodes: fabric.node_count(),
         serial_f32_force_rel_err_vs_f64: max_diff_f64(&want_forces, &true_forces) / true_largest,
-        pass,
         modes,
-        render_coverage,
-    })
+    };
+    Ok((report, drawn))
 }
 
 impl GpuCheckReport {
     /// A plain-text table of the report.
     pub fn table(&self) -> String {
         let mut out = format!(
-            "adapter: {} (fused fma: {})\npatch: {} ({} nodes); Serial f32 force rel err vs f64: {:.3e}\n\n",
+            "adapter: {} (fused fma: {})\npatch: {}\n",
             self.adapter,
             if self.fused_fma { "yes" } else { "no" },
-            self.size,
-            self.nodes,
-            self.serial_f32_force_rel_err_vs_f64
+            self.size
         );
-        out += &format!(
-            "{:<8} {:>14} {:>14} {:>12} {:>12} {:>18} {:>12}  verdict\n",
-            "mode", "force max err", "force rel err", "(bound)", "vs f64", "trajectory err r", "(bound)"
-        );
-        for m in &self.modes {
+        for chart in &self.charts {
             out += &format!(
-                "{:<8} {:>14.3e} {:>14.3e} {:>12.1e} {:>12.3e} {:>18.3e} {:>12.1e}  {}\n",
-                m.mode,
-                m.force_max_err,
-                m.force_rel_err,
-                m.force_bound,
-                m.force_rel_err_vs_f64,
-                m.trajectory_max_err,
-                m.trajectory_bound,
-                if m.pass { "PASS" } else { "FAIL" }
+                "\n{} ({} purls, {} nodes); Serial f32 force rel err vs f64: {:.3e}\n",
+                chart.chart, chart.purls, chart.nodes, chart.serial_f32_force_rel_err_vs_f64
             );
+            out += &format!(
+                "{:<8} {:>14} {:>14} {:>12} {:>12} {:>18} {:>12}  verdict\n",
+                "mode", "force max err", "force rel err", "(bound)", "vs f64", "trajectory err r", "(bound)"
+            );
+            for m in &chart.modes {
+                out += &format!(
+                    "{:<8} {:>14.3e} {:>14.3e} {:>12.1e} {:>12.3e} {:>18.3e} {:>12.1e}  {}\n",
+                    m.mode,
+                    m.force_max_err,
+                    m.force_rel_err,
+                    m.force_bound,
+                    m.force_rel_err_vs_f64,
+                    m.trajectory_max_err,
+                    m.trajectory_bound,
+                    if m.pass { "PASS" } else { "FAIL" }
+                );
+            }
         }
         out += &format!(
             "render   {:.1} % of a 640x480 frame is yarn (pass above {:.0} %)\n",

@@ -269,30 +269,41 @@ fn cli_gpu_bench_prints_the_floors_per_size() {
     assert!(stderr.contains("copying one node buffer of 2048 nodes"), "{stderr}");
 }
 
-/// `gpucheck` on this machine's adapter: both modes agree with Serial f32
-/// and the JSON carries the documented keys. Skips, counted, only when there
-/// is no adapter.
+/// `gpucheck` on this machine's adapter: both modes agree with Serial f32,
+/// on stockinette and on a random mix of knit and purl, and the JSON
+/// carries the documented keys. Skips, counted, only when there is no
+/// adapter.
 #[test]
 fn cli_gpucheck_passes_and_reports_every_mode() {
-    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate")).args(["gpucheck", "--json"]).output().unwrap();
+    let output =
+        Command::new(env!("CARGO_BIN_EXE_yarn-gate")).args(["gpucheck", "--size", "8x8", "--json"]).output().unwrap();
     if no_adapter(&output) {
         return;
     }
     let report: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     assert!(report["adapter"].as_str().is_some_and(|a| !a.is_empty()));
     assert!(report["fused_fma"].is_boolean());
-    let modes = report["modes"].as_array().unwrap();
-    let names: Vec<_> = modes.iter().map(|m| m["mode"].as_str().unwrap()).collect();
-    assert_eq!(names, ["gather", "fixed"]);
-    for m in modes {
-        for key in ["force_max_err", "force_rel_err", "trajectory_max_err"] {
-            assert!(m[key].as_f64().is_some_and(f64::is_finite), "{key} in {m}");
+    let charts = report["charts"].as_array().unwrap();
+    let names: Vec<_> = charts.iter().map(|c| c["chart"].as_str().unwrap()).collect();
+    assert_eq!(names, ["stockinette", "mixed, seed 1"]);
+    assert_eq!(charts[0]["purls"], 0);
+    // The random chart mixes both kinds.
+    let purls = charts[1]["purls"].as_u64().unwrap();
+    assert!(purls > 8 && purls < 56, "{purls} purls of 64");
+    for chart in charts {
+        let modes = chart["modes"].as_array().unwrap();
+        let names: Vec<_> = modes.iter().map(|m| m["mode"].as_str().unwrap()).collect();
+        assert_eq!(names, ["gather", "fixed"]);
+        for m in modes {
+            for key in ["force_max_err", "force_rel_err", "trajectory_max_err"] {
+                assert!(m[key].as_f64().is_some_and(f64::is_finite), "{key} in {m}");
+            }
+            assert_eq!(m["pass"], true, "{m}");
         }
-        assert_eq!(m["pass"], true, "{m}");
+        // Fixed point is quantised, so it cannot be exact; gather has no quantum.
+        assert!(modes[1]["force_max_err"].as_f64().unwrap() > 0.0);
+        assert!(modes[0]["force_rel_err"].as_f64().unwrap() <= 1e-5);
     }
-    // Fixed point is quantised, so it cannot be exact; gather has no quantum.
-    assert!(modes[1]["force_max_err"].as_f64().unwrap() > 0.0);
-    assert!(modes[0]["force_rel_err"].as_f64().unwrap() <= 1e-5);
     let coverage = report["render_coverage"].as_f64().unwrap();
     assert!(coverage > yarn_gate::gpucheck::MIN_RENDER_COVERAGE && coverage < 0.6, "render coverage {coverage}");
     assert_eq!(report["pass"], true);

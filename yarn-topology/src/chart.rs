@@ -241,6 +241,19 @@ impl Chart {
     pub fn get(&self, column: usize, row: usize) -> Option<StitchKind> {
         (column < self.width && row < self.height).then(|| self.stitches[row * self.width + column])
     }
+
+    /// How many of its stitches are `kind`.
+    ///
+    /// ```
+    /// use yarn_topology::{Pattern, StitchKind};
+    ///
+    /// let rib = Pattern::Rib2x2.chart(8, 3)?;
+    /// assert_eq!((rib.count(StitchKind::Knit), rib.count(StitchKind::Purl)), (12, 12));
+    /// # Ok::<(), yarn_topology::TopologyError>(())
+    /// ```
+    pub fn count(&self, kind: StitchKind) -> usize {
+        self.stitches.iter().filter(|&&k| k == kind).count()
+    }
 }
 
 fn check_size(width: usize, height: usize) -> Result<(), TopologyError> {

@@ -9,7 +9,7 @@ use serde::Serialize;
 use yarn_backend_wgpu::{Gpu, Mode, Wgpu, wgpu};
 use yarn_model::{Backend, BackendError, Params, V3};
 use yarn_render::{RenderError, Renderer, View, Yarn};
-use yarn_topology::{Chart, Fabric, Geometry, Pattern, Pin, Side, StitchKind, TopologyError, Vec3};
+use yarn_topology::{Fabric, Geometry, Pattern, Pin, Side, StitchKind, TopologyError, Vec3};
 
 /// The texture format [`Demo::draw`] targets when drawing offscreen (a
 /// canvas uses its own preferred format's sRGB view).
@@ -505,15 +505,7 @@ fn load(backend: &mut Wgpu, renderer: &Renderer, settings: &Settings) -> Result<
     backend.load(&fabric, &settings.params)?;
     let rest: Vec<[f32; 3]> = fabric.positions().iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
     let yarn = renderer.yarn(&rest, fabric.yarns(), fabric.yarn_radius() as f32)?;
-    Ok((fabric, purls(&chart), yarn))
-}
-
-/// The purl stitches in `chart`.
-fn purls(chart: &Chart) -> usize {
-    (0..chart.height())
-        .flat_map(|row| (0..chart.width()).map(move |column| (column, row)))
-        .filter(|&(column, row)| chart.get(column, row) == Some(StitchKind::Purl))
-        .count()
+    Ok((fabric, chart.count(StitchKind::Purl), yarn))
 }
 
 /// Every pattern name, comma separated, for messages.
@@ -611,7 +603,7 @@ pub fn ladder_order(fabric: &Fabric, column: usize) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use yarn_topology::Contact;
+    use yarn_topology::{Chart, Contact};
 
     fn patch(w: usize, h: usize) -> Fabric {
         Fabric::from_chart(&Chart::stockinette(w, h).expect("size"), &Geometry::default()).expect("fabric")
