@@ -248,6 +248,27 @@ mod tests {
         Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::paper()).unwrap()
     }
 
+    /// Self-contact runs on the reference backend; the fast ones refuse it
+    /// by name, on load and on a change of parameters, and keep running
+    /// what they had.
+    #[test]
+    fn only_the_reference_runs_self_contact_so_far() {
+        let with = Params { self_contact_stiffness: 800.0, ..Params::default() };
+        let refused = |e: Result<(), BackendError>| {
+            matches!(e, Err(BackendError::Unsupported { feature: "self-contact", param: "self_contact_stiffness", .. }))
+        };
+        let mut serial = Serial::<f32>::new();
+        assert!(refused(serial.load(&patch(), &with)));
+        serial.load(&patch(), &Params::default()).unwrap();
+        assert!(refused(serial.set_params(&with)));
+        assert_eq!(serial.model().unwrap().params(), &Params::default());
+        let mut rayon = Rayon::new();
+        assert!(refused(rayon.load(&patch(), &with)));
+        let mut reference = Reference::<f64>::new();
+        reference.load(&patch(), &with).unwrap();
+        reference.advance(10).unwrap();
+    }
+
     #[test]
     fn calls_before_load_say_so() {
         let mut serial = Serial::<f32>::new();

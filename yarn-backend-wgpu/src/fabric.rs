@@ -190,6 +190,7 @@ impl GpuFabric {
     }
 
     pub(crate) fn set_params(&mut self, params: &yarn_model::Params) -> Result<(), BackendError> {
+        BackendError::unless_self_contact(params, "wgpu")?;
         self.model.set_params(params)?;
         self.write_params();
         self.gpu.queue.write_buffer(&self.buffers.chain, 0, bytemuck::cast_slice(&chain(&self.model)));

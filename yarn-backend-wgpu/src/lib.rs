@@ -241,6 +241,7 @@ impl Backend for Wgpu {
     }
 
     fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError> {
+        BackendError::unless_self_contact(params, "wgpu")?;
         let model = Model::<f32>::new(fabric, params)?;
         check_fits(&self.gpu, &model)?;
         // The fabric is accepted: free the previous one's buffers before

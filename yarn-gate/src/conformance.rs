@@ -502,6 +502,9 @@ pub mod strategy {
                     gravity: g,
                     substep_limit: yarn_model::STABLE_FRACTION,
                     sleep_speed,
+                    // Only the reference backend runs self-contact so far.
+                    self_contact_stiffness: 0.0,
+                    self_contact_skin: Params::default().self_contact_skin,
                 };
                 Params { substep: fraction * p.stability_bound(), ..p }
             })

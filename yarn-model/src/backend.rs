@@ -77,6 +77,36 @@ pub enum BackendError {
     /// The compute device reported an error or was lost.
     #[error("compute device error: {0}")]
     Device(String),
+    /// The parameters turn on a part of the model this backend does not
+    /// run yet.
+    #[error("the {backend} backend does not run {feature} yet; set `{param}` to 0 or use the reference backend")]
+    Unsupported {
+        /// The backend.
+        backend: &'static str,
+        /// The part of the model.
+        feature: &'static str,
+        /// The parameter that turns it on.
+        param: &'static str,
+    },
+}
+
+impl BackendError {
+    /// `Ok` unless `params` turn on self-contact, which only the reference
+    /// backend runs so far: then [`BackendError::Unsupported`] naming
+    /// `backend`.
+    ///
+    /// # Errors
+    /// As above.
+    pub fn unless_self_contact(params: &Params, backend: &'static str) -> Result<(), BackendError> {
+        if params.self_contact_stiffness > 0.0 {
+            return Err(BackendError::Unsupported {
+                backend,
+                feature: "self-contact",
+                param: "self_contact_stiffness",
+            });
+        }
+        Ok(())
+    }
 }
 
 /// A compute backend: something that can hold a fabric and advance it by the

@@ -32,6 +32,7 @@ mod model;
 mod params;
 mod real;
 mod rollback;
+pub mod self_contact;
 mod simulation;
 pub mod stages;
 #[cfg(not(target_arch = "wasm32"))]

@@ -5,7 +5,10 @@
 
 use yarn_topology::{Fabric, Link, Pin, YarnSpan, available_memory, check_memory};
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use crate::real::{cast, widen};
+use crate::self_contact::{ContactRule, MAX_STEP_RADII};
 use crate::{BackendError, Params, Real, V3};
 
 /// The parameters in a backend's precision, with the derived factors the
@@ -35,6 +38,8 @@ pub struct Coefficients<T> {
     /// h k_c / (m/2): normal velocity change per unit contact compression,
     /// used by the friction filter.
     pub friction_impulse: T,
+    /// Self-contact stiffness k_sc (0: off).
+    pub self_contact: T,
 }
 
 impl<T: Real> Coefficients<T> {
@@ -52,6 +57,7 @@ impl<T: Real> Coefficients<T> {
             h_over_m: T::of(p.substep / p.mass),
             damping_factor: T::of(1.0 / (1.0 + p.damping * p.substep)),
             friction_impulse: T::of(p.substep * p.contact_stiffness / (0.5 * p.mass)),
+            self_contact: T::of(p.self_contact_stiffness),
         }
     }
 }
@@ -151,6 +157,18 @@ pub struct Model<T> {
     /// floor: the length the divergence speed and the re-seat step scale
     /// with.
     mean_rest: f64,
+    /// Which segment pairs may touch under self-contact.
+    rule: ContactRule,
+    /// Changes whenever the parameters or contact liveness do; unique
+    /// across models ([`Model::revision`]).
+    revision: u64,
+}
+
+/// The source of [`Model::revision`]s.
+static REVISIONS: AtomicU64 = AtomicU64::new(1);
+
+fn next_revision() -> u64 {
+    REVISIONS.fetch_add(1, Ordering::Relaxed)
 }
 
 impl<T: Real> Model<T> {
@@ -176,9 +194,9 @@ impl<T: Real> Model<T> {
         let nodes = fabric.node_count();
         // A node starts at most one segment (to its next node) and centres
         // at most one joint, so both tables are indexed by node.
-        let mut segment_rest = vec![T::zero(); nodes];
+        let mut rest = vec![0.0; nodes];
         for s in fabric.springs() {
-            segment_rest[s.a as usize] = T::of(s.rest_length);
+            rest[s.a as usize] = s.rest_length;
         }
         let mut joint_rest = vec![T::zero(); nodes];
         for t in fabric.triples() {
@@ -187,7 +205,9 @@ impl<T: Real> Model<T> {
         let mut model = Self {
             yarns: fabric.yarns().to_vec(),
             links: fabric.links(),
-            segment_rest,
+            segment_rest: rest.iter().map(|&l| T::of(l)).collect(),
+            rule: ContactRule::new(fabric.yarn_radius(), fabric.yarns(), &rest),
+            revision: next_revision(),
             joint_rest,
             springs: fabric.springs().len(),
             joints: fabric.triples().len(),
@@ -312,8 +332,32 @@ impl<T: Real> Model<T> {
     /// a fabric of lone nodes, which has no segment) in a single substep. No
     /// physical motion of the yarn comes near it; an explicit step that
     /// produces it has blown up.
+    ///
+    /// With self-contact on, a node that would move more than
+    /// [`MAX_STEP_RADII`] yarn radii in one substep has diverged too, since
+    /// it may have passed through yarn.
     pub fn divergence_speed(&self) -> f64 {
-        DIVERGENCE_REACH * self.mean_rest.max(f64::MIN_POSITIVE) / self.params.substep
+        let reach = DIVERGENCE_REACH * self.mean_rest.max(f64::MIN_POSITIVE);
+        let reach = if self.self_contact() { reach.min(MAX_STEP_RADII * self.rule.radius()) } else { reach };
+        reach / self.params.substep
+    }
+
+    /// Whether self-contact is on ([`Params::self_contact_stiffness`] > 0).
+    pub fn self_contact(&self) -> bool {
+        self.params.self_contact_stiffness > 0.0
+    }
+
+    /// Which segment pairs may touch under self-contact.
+    pub fn contact_rule(&self) -> &ContactRule {
+        &self.rule
+    }
+
+    /// A number that changes whenever the parameters or the contacts'
+    /// liveness do, and that no other model shares: what a cached
+    /// self-contact list ([`crate::self_contact::Candidates`]) checks to
+    /// know it was built for this model as it is.
+    pub fn revision(&self) -> u64 {
+        self.revision
     }
 
     /// The parameters in force.
@@ -329,6 +373,7 @@ impl<T: Real> Model<T> {
         params.validate()?;
         self.params = *params;
         self.coeffs = Coefficients::new(params);
+        self.revision = next_revision();
         Ok(())
     }
 
@@ -388,6 +433,9 @@ impl<T: Real> Model<T> {
     /// unchanged then.
     pub fn set_contacts_alive(&mut self, alive: &[bool], positions: &[V3<T>]) -> Result<(), BackendError> {
         check_len("contact liveness flags", self.contacts.len(), alive.len())?;
+        if alive != self.alive.as_slice() {
+            self.revision = next_revision();
+        }
         if !self.revives(alive) {
             self.alive.copy_from_slice(alive);
             return Ok(());

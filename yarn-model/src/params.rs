@@ -55,6 +55,17 @@ pub struct Params {
     /// or the parameters, state or contacts change. 0 never sleeps
     /// (default: 0).
     pub sleep_speed: f64,
+    /// Self-contact stiffness k_sc: two segments of yarn closer than one
+    /// yarn diameter 2r are pushed apart with the energy ½ k_sc (2r − d)²,
+    /// d their closest distance ([`crate::self_contact`]). 0 turns
+    /// self-contact off; only the reference backend runs it so far
+    /// (default: 0).
+    pub self_contact_stiffness: f64,
+    /// The skin of the self-contact candidate lists, in yarn radii: a list
+    /// holds the pairs within 2r plus this, and is rebuilt once some node
+    /// has moved half of it. Larger rebuilds less often but checks more
+    /// pairs each substep (default: 0.5).
+    pub self_contact_skin: f64,
 }
 
 /// Substeps a block must stay below [`Params::sleep_speed`] before it
@@ -101,6 +112,9 @@ impl Params {
             gravity: 0.0,
             substep_limit: STABLE_FRACTION,
             sleep_speed: 0.0,
+            // The paper's model has no self-contact.
+            self_contact_stiffness: 0.0,
+            self_contact_skin: 0.5,
         }
     }
 }
@@ -160,11 +174,13 @@ fn limit_note(bound: f64, analytic: f64) -> String {
 impl Params {
     /// ω_max = sqrt(k_max / m) for the stiffest element, in 1/s (SPEC §1).
     ///
-    /// k_max is the larger of the stretch and contact stiffnesses. Bending
+    /// k_max is the largest of the stretch, contact and self-contact
+    /// stiffnesses (a self-contact's push, shared by the two nodes of each
+    /// segment, loads no node with more than k_sc). Bending
     /// acts as a stiffness near k_b/ℓ², which depends on segment lengths and
     /// is far below k_s at the default gauge, so it is left out.
     pub fn omega_max(&self) -> f64 {
-        (self.stretch_stiffness.max(self.contact_stiffness) / self.mass).sqrt()
+        (self.stretch_stiffness.max(self.contact_stiffness).max(self.self_contact_stiffness) / self.mass).sqrt()
     }
 
     /// The explicit stability bound h < 2/ω_max, in seconds (SPEC §1).
@@ -197,6 +213,8 @@ impl Params {
             ("gravity", self.gravity, Any),
             ("substep_limit", self.substep_limit, Fraction),
             ("sleep_speed", self.sleep_speed, NonNegative),
+            ("self_contact_stiffness", self.self_contact_stiffness, NonNegative),
+            ("self_contact_skin", self.self_contact_skin, Positive),
         ];
         for (name, value, valid) in fields {
             if !value.is_finite() {
@@ -265,6 +283,8 @@ mod tests {
             ("gravity", defaults.gravity),
             ("substep_limit", defaults.substep_limit),
             ("sleep_speed", defaults.sleep_speed),
+            ("self_contact_stiffness", defaults.self_contact_stiffness),
+            ("self_contact_skin", defaults.self_contact_skin),
         ];
         let mut doc = String::new();
         let mut checked = 0;
@@ -336,6 +356,13 @@ mod tests {
         Params { substep: 0.003, substep_limit: 1.0, ..p }.validate().unwrap();
         assert!(Params { substep: 0.006, substep_limit: 1.0, ..p }.validate().is_err());
         assert!(Params { substep_limit: 1.5, ..p }.validate().is_err());
+        // A self-contact stiffer than the springs sets the bound.
+        let stiff = Params { self_contact_stiffness: 4.0 * p.stretch_stiffness, ..p };
+        assert!((stiff.stability_bound() - 0.5 * p.stability_bound()).abs() < 1e-12);
+        assert!(matches!(
+            Params { self_contact_skin: 0.0, ..p }.validate(),
+            Err(ParamError::OutOfRange { name: "self_contact_skin", .. })
+        ));
         // Zero friction, damping and bending are legitimate scenes.
         Params { friction: 0.0, damping: 0.0, bend_stiffness: 0.0, ..p }.validate().unwrap();
     }

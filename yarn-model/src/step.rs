@@ -3,8 +3,28 @@
 //! every backend must compute; `yarn_backend_cpu::Reference` runs it as is,
 //! and the conformance suite holds the fast backends to it.
 
-use crate::terms::{bend_energy, bend_forces, gravity_energy, gravity_force, spring_energy, spring_force};
+use crate::self_contact::{Candidates, find_pairs};
+use crate::terms::{
+    bend_energy, bend_forces, gravity_energy, gravity_force, self_contact_energy, self_contact_forces, spring_energy,
+    spring_force,
+};
 use crate::{Model, Real, State, V3};
+
+/// The skin, in yarn radii, of a self-contact search made for one
+/// evaluation ([`accumulate_forces`], [`potential`]): a margin over 2r for
+/// the rounding of distances in the model's precision, so no pair that the
+/// force counts is missed.
+const FRESH_SKIN_RADII: f64 = 1e-3;
+
+/// The segment pairs within reach at `x` for one evaluation: empty with
+/// self-contact off.
+fn touching<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Vec<[u32; 2]> {
+    let mut pairs = Vec::new();
+    if model.self_contact() {
+        find_pairs(model, x, FRESH_SKIN_RADII * model.contact_rule().radius(), &mut pairs);
+    }
+    pairs
+}
 
 /// Energy of a state, split by term, in `f64`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -15,6 +35,8 @@ pub struct Energy {
     pub bend: f64,
     /// Σ ½ k_c (d_c − ℓ)² over alive contacts.
     pub contact: f64,
+    /// Σ ½ k_sc (2r − d)² over segment pairs in self-contact.
+    pub self_contact: f64,
     /// Σ m g y.
     pub gravity: f64,
     /// Σ ½ m |v|².
@@ -24,7 +46,7 @@ pub struct Energy {
 impl Energy {
     /// The potential U (SPEC §3).
     pub fn potential(&self) -> f64 {
-        self.stretch + self.bend + self.contact + self.gravity
+        self.stretch + self.bend + self.contact + self.self_contact + self.gravity
     }
 
     /// Potential plus kinetic energy.
@@ -40,13 +62,22 @@ pub struct Scratch<T: Real> {
     pub forces: Vec<V3<T>>,
     /// Friction velocity correction per node (SPEC §4 step 3).
     pub friction: Vec<V3<T>>,
+    /// The self-contact candidate list, kept between substeps.
+    pub candidates: Candidates<T>,
 }
 
 /// F = −∇U(x) over alive contacts (SPEC §4 step 1), written into `forces`,
 /// which is resized to the node count. Springs and joints follow each
 /// yarn ([`Model::springs`], [`Model::joints`]), wrapping around closed
-/// ones, and never join two.
+/// ones, and never join two. With self-contact on, every segment pair
+/// within reach pushes apart ([`crate::self_contact`]).
 pub fn accumulate_forces<T: Real>(model: &Model<T>, x: &[V3<T>], forces: &mut Vec<V3<T>>) {
+    accumulate_forces_over(model, x, &touching(model, x), forces);
+}
+
+/// [`accumulate_forces`] with the self-contact candidate pairs given: a
+/// list that holds every pair within reach (more add nothing).
+fn accumulate_forces_over<T: Real>(model: &Model<T>, x: &[V3<T>], pairs: &[[u32; 2]], forces: &mut Vec<V3<T>>) {
     let c = model.coeffs();
     forces.clear();
     forces.resize(x.len(), gravity_force(c.mass, c.gravity));
@@ -67,6 +98,17 @@ pub fn accumulate_forces<T: Real>(model: &Model<T>, x: &[V3<T>], forces: &mut Ve
         let f = spring_force(&x[a], &x[b], contact.rest, c.contact);
         forces[a] += f;
         forces[b] -= f;
+    }
+    let (links, reach) = (model.links(), T::of(2.0 * model.contact_rule().radius()));
+    for &[a, b] in pairs {
+        let [a0, b0] = [a as usize, b as usize];
+        let (a1, b1) = (links[a0].next().map_or(a0, |n| n as usize), links[b0].next().map_or(b0, |n| n as usize));
+        if let Some(f) = self_contact_forces(&x[a0], &x[a1], &x[b0], &x[b1], reach, c.self_contact) {
+            forces[a0] += f[0];
+            forces[a1] += f[1];
+            forces[b0] += f[2];
+            forces[b1] += f[3];
+        }
     }
 }
 
@@ -95,6 +137,13 @@ pub fn potential<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Energy {
             .zip(model.alive())
             .filter(|(_, alive)| **alive)
             .map(|(k, _)| spring_energy(&x[k.a as usize], &x[k.b as usize], k.rest, c.contact))),
+        self_contact: {
+            let (links, reach) = (model.links(), T::of(2.0 * model.contact_rule().radius()));
+            let next = |a: u32| links[a as usize].next().map_or(a as usize, |n| n as usize);
+            sum(&mut touching(model, x).into_iter().map(|[a, b]| {
+                self_contact_energy(&x[a as usize], &x[next(a)], &x[b as usize], &x[next(b)], reach, c.self_contact)
+            }))
+        },
         gravity: sum(&mut x.iter().map(|p| gravity_energy(p, c.mass, c.gravity))),
         kinetic: 0.0,
     }
@@ -132,7 +181,8 @@ pub fn friction_change<T: Real>(
 }
 
 /// One substep (SPEC §4), in place:
-/// 1. F = −∇U(x) over alive contacts;
+/// 1. F = −∇U(x) over alive contacts, and with self-contact on over the
+///    pairs of the candidate list in `scratch`, refreshed first;
 /// 2. v* = (v + hF/m) / (1 + βh);
 /// 3. Jacobi friction: every compressed alive contact's correction computed
 ///    from v* and x, summed, then applied;
@@ -140,7 +190,13 @@ pub fn friction_change<T: Real>(
 /// 5. pinned nodes set to their targets with zero velocity.
 pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Scratch<T>) {
     let c = model.coeffs();
-    accumulate_forces(model, &state.positions, &mut scratch.forces);
+    let pairs = if model.self_contact() {
+        scratch.candidates.refresh(model, &state.positions);
+        scratch.candidates.pairs()
+    } else {
+        &[]
+    };
+    accumulate_forces_over(model, &state.positions, pairs, &mut scratch.forces);
     for (v, f) in state.velocities.iter_mut().zip(&scratch.forces) {
         *v = (*v + f * c.h_over_m) * c.damping_factor;
     }

@@ -96,6 +96,80 @@ pub fn bend_forces<T: Real>(a: &V3<T>, b: &V3<T>, c: &V3<T>, target: T, k: T) ->
     Some([fa, -(fa + fc), fc])
 }
 
+/// The closest points of segments p0p1 and q0q1, as the parameters
+/// `(s, t)` in [0, 1] of p0 + s (p1 − p0) and q0 + t (q1 − q0).
+///
+/// Ericson's clamped solution (*Real-Time Collision Detection*, 2005,
+/// §5.1.9): the lines' closest parameters, clamped to the segments, then
+/// the other recomputed against the clamp. Parallel segments (the
+/// determinant below 1e-6 of a·e) take s = 0 and the point of q nearest
+/// p0; a zero-length segment takes its start.
+#[inline]
+pub fn closest_parameters<T: Real>(p0: &V3<T>, p1: &V3<T>, q0: &V3<T>, q1: &V3<T>) -> (T, T) {
+    let (u, v, w) = (p1 - p0, q1 - q0, p0 - q0);
+    let (a, e, f) = (u.dot(&u), v.dot(&v), v.dot(&w));
+    let unit = |x: T| x.clamp(T::zero(), T::one());
+    if a <= T::zero() {
+        return (T::zero(), if e > T::zero() { unit(f / e) } else { T::zero() });
+    }
+    let c = u.dot(&w);
+    if e <= T::zero() {
+        return (unit(-c / a), T::zero());
+    }
+    let b = u.dot(&v);
+    let det = a * e - b * b;
+    let s = if det > T::of(1e-6) * a * e { unit((b * f - c * e) / det) } else { T::zero() };
+    let t = (b * s + f) / e;
+    if t < T::zero() {
+        (unit(-c / a), T::zero())
+    } else if t > T::one() {
+        (unit((b - c) / a), T::one())
+    } else {
+        (s, t)
+    }
+}
+
+/// Energy ½ k (D − d)² of self-contact between segments p0p1 and q0q1,
+/// where d is their closest distance and D the contact distance (one yarn
+/// diameter, 2r); zero once d ≥ D.
+#[inline]
+pub fn self_contact_energy<T: Real>(p0: &V3<T>, p1: &V3<T>, q0: &V3<T>, q1: &V3<T>, reach: T, k: T) -> T {
+    let (s, t) = closest_parameters(p0, p1, q0, q1);
+    let d = (p0 + (p1 - p0) * s - q0 - (q1 - q0) * t).norm();
+    if d < reach { T::of(0.5) * k * (reach - d) * (reach - d) } else { T::zero() }
+}
+
+/// Forces `[f_p0, f_p1, f_q0, f_q1]` of self-contact between segments
+/// p0p1 and q0q1 ([`self_contact_energy`]), or `None` when they are at
+/// least `reach` apart or their closest points coincide (no direction).
+///
+/// With closest points c_p, c_q at (s, t) and n = (c_p − c_q)/d, the pair
+/// is pushed apart by k (D − d) n, shared by the segments' nodes as the
+/// closest points sit on them: (1 − s, s) on p and −(1 − t, −t) on q.
+/// This is the exact gradient wherever the closest points are unique:
+/// d is the minimum over (s, t) of a convex distance, so moving (s, t)
+/// changes it only to second order (Danskin's theorem), and the clamped
+/// cases hold (s, t) on the boundary.
+#[inline]
+pub fn self_contact_forces<T: Real>(
+    p0: &V3<T>,
+    p1: &V3<T>,
+    q0: &V3<T>,
+    q1: &V3<T>,
+    reach: T,
+    k: T,
+) -> Option<[V3<T>; 4]> {
+    let (s, t) = closest_parameters(p0, p1, q0, q1);
+    let gap = p0 + (p1 - p0) * s - q0 - (q1 - q0) * t;
+    let d = gap.norm();
+    if !(d < reach && d > T::zero()) {
+        return None;
+    }
+    let push = gap * (k * (reach - d) / d);
+    let (p_share, q_share) = (push * s, push * t);
+    Some([push - p_share, p_share, q_share - push, -q_share])
+}
+
 /// Gravitational energy m g y of one node (SPEC §3).
 #[inline]
 pub fn gravity_energy<T: Real>(x: &V3<T>, mass: T, gravity: T) -> T {
@@ -167,9 +241,79 @@ mod tests {
         }
 
         #[test]
+        fn closest_parameters_are_the_closest_points(p0 in point(), p1 in point(), q0 in point(), q1 in point()) {
+            let (s, t) = closest_parameters(&p0, &p1, &q0, &q1);
+            let at = |s: f64, t: f64| (p0 + (p1 - p0) * s - q0 - (q1 - q0) * t).norm();
+            let best = (0..=100).flat_map(|i| (0..=100).map(move |j| (f64::from(i) / 100.0, f64::from(j) / 100.0)))
+                .map(|(s, t)| at(s, t)).fold(f64::INFINITY, f64::min);
+            prop_assert!((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t));
+            prop_assert!(at(s, t) <= best + 1e-9, "({s}, {t}) gives {} but the grid finds {best}", at(s, t));
+        }
+
+        #[test]
+        fn self_contact_force_is_minus_gradient(p0 in point(), p1 in point(), q0 in point(), q1 in point(), k in 1.0..1000.0f64) {
+            let (u, v) = ((p1 - p0).normalize(), (q1 - q0).normalize());
+            let (s, t) = closest_parameters(&p0, &p1, &q0, &q1);
+            let d = (p0 + (p1 - p0) * s - q0 - (q1 - q0) * t).norm();
+            // Off the parallel pairs, whose closest points are not unique,
+            // and the touching ones, where the direction is undefined.
+            prop_assume!((p1 - p0).norm() > 0.1 && (q1 - q0).norm() > 0.1 && u.cross(&v).norm() > 0.05 && d > 0.05);
+            let reach = d + 1.0;
+            let forces = self_contact_forces(&p0, &p1, &q0, &q1, reach, k).expect("within reach");
+            assert_force_is_minus_gradient(&[p0, p1, q0, q1], &forces, |p| {
+                self_contact_energy(&p[0], &p[1], &p[2], &p[3], reach, k)
+            });
+        }
+        #[test]
         fn gravity_force_is_minus_gradient(x in point(), m in 1e-3..1.0f64, g in -20.0..20.0f64) {
             assert_force_is_minus_gradient(&[x], &[gravity_force(m, g)], |p| gravity_energy(&p[0], m, g));
         }
+    }
+
+    /// The end-point case: q ends beside the middle of p (a T), so its
+    /// closest point is clamped to its end and p's is inside.
+    #[test]
+    fn self_contact_at_an_end_point_is_minus_gradient() {
+        let (p0, p1) = (P::new(-1.0, 0.0, 0.0), P::new(1.2, 0.1, 0.0));
+        let (q0, q1) = (P::new(0.3, 0.5, 0.2), P::new(0.1, 2.0, -0.3));
+        let (s, t) = closest_parameters(&p0, &p1, &q0, &q1);
+        assert!(t == 0.0 && s > 0.0 && s < 1.0, "({s}, {t})");
+        let forces = self_contact_forces(&p0, &p1, &q0, &q1, 1.8, 800.0).expect("within reach");
+        assert_eq!(forces[3], P::zeros(), "the far end of q carries none of it");
+        assert_force_is_minus_gradient(&[p0, p1, q0, q1], &forces, |p| {
+            self_contact_energy(&p[0], &p[1], &p[2], &p[3], 1.8, 800.0)
+        });
+    }
+
+    /// Parallel segments: the closest points are not unique, but any
+    /// choice pushes the two apart along their common normal, with no net
+    /// force, and its size is the energy's slope along that normal.
+    #[test]
+    fn self_contact_of_parallel_segments_pushes_along_the_normal() {
+        let (p0, p1) = (P::new(0.0, 0.0, 0.0), P::new(2.0, 0.0, 0.0));
+        let (q0, q1) = (P::new(0.5, 1.5, 0.0), P::new(3.0, 1.5, 0.0));
+        let (reach, k) = (1.8, 800.0);
+        let f = self_contact_forces(&p0, &p1, &q0, &q1, reach, k).expect("within reach");
+        let total_p = f[0] + f[1];
+        assert!((total_p + f[2] + f[3]).norm() < 1e-12, "net force {:?}", total_p + f[2] + f[3]);
+        assert!(total_p.x.abs() < 1e-12 && total_p.z.abs() < 1e-12 && total_p.y < 0.0, "{total_p:?}");
+        let eps = 1e-6;
+        let apart = |dy: f64| {
+            let shift = P::new(0.0, dy, 0.0);
+            self_contact_energy(&p0, &p1, &(q0 + shift), &(q1 + shift), reach, k)
+        };
+        let slope = (apart(eps) - apart(-eps)) / (2.0 * eps);
+        assert!((-(f[2] + f[3]).y - slope).abs() < 1e-6 * slope.abs(), "force {:?} vs slope {slope}", f[2] + f[3]);
+        assert!((0.5 * k * 0.3 * 0.3 - apart(0.0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn self_contact_is_zero_out_of_reach() {
+        let (p0, p1) = (P::new(0.0, 0.0, 0.0), P::new(1.0, 0.0, 0.0));
+        let (q0, q1) = (P::new(0.0, 1.8, -1.0), P::new(0.0, 1.8, 1.0));
+        assert!(self_contact_forces(&p0, &p1, &q0, &q1, 1.8, 800.0).is_none());
+        assert_eq!(self_contact_energy(&p0, &p1, &q0, &q1, 1.8, 800.0), 0.0);
+        assert!(self_contact_forces(&p0, &p1, &q0, &q1, 1.81, 800.0).is_some());
     }
 
     #[test]

@@ -69,6 +69,7 @@ pub(crate) struct CpuFabric<T: Real> {
 impl<T: Real> CpuFabric<T> {
     /// Load `fabric` at rest, to run with `threads` threads as `exec` says.
     pub(crate) fn new(fabric: &Fabric, params: &Params, exec: Exec, threads: usize) -> Result<Self, BackendError> {
+        BackendError::unless_self_contact(params, "serial and rayon")?;
         let model = Model::<T>::new(fabric, params)?;
         let n = model.node_count();
         let state = State::<T>::at_rest(fabric);
@@ -110,6 +111,7 @@ impl<T: Real> CpuFabric<T> {
     }
 
     pub(crate) fn set_params(&mut self, params: &Params) -> Result<(), BackendError> {
+        BackendError::unless_self_contact(params, "serial and rayon")?;
         self.model.set_params(params)?;
         self.refresh_targets();
         self.wake_all();
