@@ -204,6 +204,7 @@ impl<T: Real> Candidates<T> {
     pub fn refresh(&mut self, model: &Model<T>, x: &[V3<T>]) -> bool {
         let skin = model.params().self_contact_skin * model.contact_rule().radius();
         let half = T::of(0.5 * skin);
+        #[allow(clippy::neg_cmp_op_on_partial_ord, reason = "a NaN displacement rebuilds too")]
         let stale = self.anchor.len() != x.len()
             || self.revision != model.revision()
             || x.iter().zip(&self.anchor).any(|(p, q)| !((p - q).norm_squared() <= half * half));
