@@ -108,13 +108,13 @@ fn chain_linked(node: u32) -> vec3<f32> {
 
 fn node_force(node: u32) -> vec3<f32> {
     let i = i32(node);
-    // The force as if the neighbours were beside, its loads issued without
-    // waiting on the links; then, where node i − 1, i or i + 1 wraps (a
-    // closed yarn's ends), the force through the links instead. The rare
-    // second path costs the common one nothing.
-    var f = chain_beside(i);
+    var f: vec3<f32>;
+    // Node i reads the links of nodes i − 1 to i + 1 (whose joints it
+    // shares); where one wraps, its neighbourhood is not beside it.
     if wraps(i - 1) || wraps(i) || wraps(i + 1) {
         f = chain_linked(node);
+    } else {
+        f = chain_beside(i);
     }
     for (var e = start[node]; e < start[node + 1u]; e++) {
         let c = incident[e];
