@@ -26,7 +26,7 @@
 
 use std::collections::HashSet;
 
-use crate::terms::closest_parameters;
+use crate::terms::closest_gap;
 use crate::{Model, Real, V3, widen};
 
 /// Segments closer than this along their yarn, in yarn radii of rest arc
@@ -177,8 +177,7 @@ fn search<T: Real>(model: &Model<T>, x: &[V3<T>], reach: f64, mut visit: impl Fn
                 if b <= a || rule.near_along_yarn(a, b) {
                     continue;
                 }
-                let (s, t) = closest_parameters(&p0, &p1, &q0, &q1);
-                visit(a as u32, b as u32, (p0 + (p1 - p0) * s - q0 - (q1 - q0) * t).norm());
+                visit(a as u32, b as u32, closest_gap(&p0, &p1, &q0, &q1).0.norm());
             }
         }
     }
@@ -304,8 +303,7 @@ mod tests {
         let mut pairs = Vec::new();
         for (k, &a) in segments.iter().enumerate() {
             for &b in &segments[k + 1..] {
-                let (s, t) = closest_parameters(&x[a], &end(a), &x[b], &end(b));
-                let d = (x[a] + (end(a) - x[a]) * s - x[b] - (end(b) - x[b]) * t).norm();
+                let d = closest_gap(&x[a], &end(a), &x[b], &end(b)).0.norm();
                 let pair = [a as u32, b as u32];
                 if d < reach && !model.contact_rule().near_along_yarn(a, b) && !tethers.contains(&pair) {
                     pairs.push(pair);

@@ -16,6 +16,12 @@ use crate::{Model, Real, State, V3};
 /// force counts is missed.
 const FRESH_SKIN_RADII: f64 = 1e-3;
 
+/// The node at the far end of the segment that node `a` starts (`a` itself
+/// where none leaves it, which a candidate pair never names).
+fn segment_end<T: Real>(model: &Model<T>, a: usize) -> usize {
+    model.links()[a].next().map_or(a, |n| n as usize)
+}
+
 /// The segment pairs within reach at `x` for one evaluation: empty with
 /// self-contact off.
 fn touching<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Vec<[u32; 2]> {
@@ -99,10 +105,10 @@ fn accumulate_forces_over<T: Real>(model: &Model<T>, x: &[V3<T>], pairs: &[[u32;
         forces[a] += f;
         forces[b] -= f;
     }
-    let (links, reach) = (model.links(), T::of(2.0 * model.contact_rule().radius()));
+    let reach = T::of(2.0 * model.contact_rule().radius());
     for &[a, b] in pairs {
         let [a0, b0] = [a as usize, b as usize];
-        let (a1, b1) = (links[a0].next().map_or(a0, |n| n as usize), links[b0].next().map_or(b0, |n| n as usize));
+        let (a1, b1) = (segment_end(model, a0), segment_end(model, b0));
         if let Some(f) = self_contact_forces(&x[a0], &x[a1], &x[b0], &x[b1], reach, c.self_contact) {
             forces[a0] += f[0];
             forces[a1] += f[1];
@@ -138,10 +144,17 @@ pub fn potential<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Energy {
             .filter(|(_, alive)| **alive)
             .map(|(k, _)| spring_energy(&x[k.a as usize], &x[k.b as usize], k.rest, c.contact))),
         self_contact: {
-            let (links, reach) = (model.links(), T::of(2.0 * model.contact_rule().radius()));
-            let next = |a: u32| links[a as usize].next().map_or(a as usize, |n| n as usize);
+            let reach = T::of(2.0 * model.contact_rule().radius());
             sum(&mut touching(model, x).into_iter().map(|[a, b]| {
-                self_contact_energy(&x[a as usize], &x[next(a)], &x[b as usize], &x[next(b)], reach, c.self_contact)
+                let (a, b) = (a as usize, b as usize);
+                self_contact_energy(
+                    &x[a],
+                    &x[segment_end(model, a)],
+                    &x[b],
+                    &x[segment_end(model, b)],
+                    reach,
+                    c.self_contact,
+                )
             }))
         },
         gravity: sum(&mut x.iter().map(|p| gravity_energy(p, c.mass, c.gravity))),

@@ -129,13 +129,20 @@ pub fn closest_parameters<T: Real>(p0: &V3<T>, p1: &V3<T>, q0: &V3<T>, q1: &V3<T
     }
 }
 
+/// The vector c_p − c_q between the closest points of segments p0p1 and
+/// q0q1, with their parameters `(s, t)` ([`closest_parameters`]).
+#[inline]
+pub fn closest_gap<T: Real>(p0: &V3<T>, p1: &V3<T>, q0: &V3<T>, q1: &V3<T>) -> (V3<T>, T, T) {
+    let (s, t) = closest_parameters(p0, p1, q0, q1);
+    (p0 + (p1 - p0) * s - q0 - (q1 - q0) * t, s, t)
+}
+
 /// Energy ½ k (D − d)² of self-contact between segments p0p1 and q0q1,
 /// where d is their closest distance and D the contact distance (one yarn
 /// diameter, 2r); zero once d ≥ D.
 #[inline]
 pub fn self_contact_energy<T: Real>(p0: &V3<T>, p1: &V3<T>, q0: &V3<T>, q1: &V3<T>, reach: T, k: T) -> T {
-    let (s, t) = closest_parameters(p0, p1, q0, q1);
-    let d = (p0 + (p1 - p0) * s - q0 - (q1 - q0) * t).norm();
+    let d = closest_gap(p0, p1, q0, q1).0.norm();
     if d < reach { T::of(0.5) * k * (reach - d) * (reach - d) } else { T::zero() }
 }
 
@@ -145,7 +152,7 @@ pub fn self_contact_energy<T: Real>(p0: &V3<T>, p1: &V3<T>, q0: &V3<T>, q1: &V3<
 ///
 /// With closest points c_p, c_q at (s, t) and n = (c_p − c_q)/d, the pair
 /// is pushed apart by k (D − d) n, shared by the segments' nodes as the
-/// closest points sit on them: (1 − s, s) on p and −(1 − t, −t) on q.
+/// closest points sit on them: (1 − s, s) on p and −(1 − t, t) on q.
 /// This is the exact gradient wherever the closest points are unique:
 /// d is the minimum over (s, t) of a convex distance, so moving (s, t)
 /// changes it only to second order (Danskin's theorem), and the clamped
@@ -159,8 +166,7 @@ pub fn self_contact_forces<T: Real>(
     reach: T,
     k: T,
 ) -> Option<[V3<T>; 4]> {
-    let (s, t) = closest_parameters(p0, p1, q0, q1);
-    let gap = p0 + (p1 - p0) * s - q0 - (q1 - q0) * t;
+    let (gap, s, t) = closest_gap(p0, p1, q0, q1);
     let d = gap.norm();
     if !(d < reach && d > T::zero()) {
         return None;
