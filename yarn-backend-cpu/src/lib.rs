@@ -45,6 +45,14 @@ macro_rules! forward_to_loaded {
             self.loaded()?.set_contacts_alive(alive)
         }
 
+        fn set_colliders(&mut self, colliders: &[yarn_model::Collider]) -> Result<(), yarn_model::BackendError> {
+            self.loaded()?.set_colliders(colliders)
+        }
+
+        fn self_contact_builds(&self) -> Option<u64> {
+            self.loaded.as_ref().map(crate::fabric::CpuFabric::self_contact_builds)
+        }
+
         fn write_state(&mut self, state: &yarn_model::State<$real>) -> Result<(), yarn_model::BackendError> {
             self.loaded()?.write_state(state)
         }
@@ -210,6 +218,14 @@ impl<T: Real> Backend for Reference<T> {
         model.set_contacts_alive(alive, &state.positions)
     }
 
+    fn set_colliders(&mut self, colliders: &[yarn_model::Collider]) -> Result<(), BackendError> {
+        self.loaded()?.model.set_colliders(colliders)
+    }
+
+    fn self_contact_builds(&self) -> Option<u64> {
+        self.loaded.as_ref().map(|loaded| loaded.scratch.candidates.builds())
+    }
+
     fn write_state(&mut self, state: &State<T>) -> Result<(), BackendError> {
         let loaded = self.loaded()?;
         state.check_len(loaded.model.node_count())?;
@@ -248,25 +264,44 @@ mod tests {
         Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::paper()).unwrap()
     }
 
-    /// Self-contact runs on the reference backend; the fast ones refuse it
-    /// by name, on load and on a change of parameters, and keep running
-    /// what they had.
+    /// A patch dropped on a floor with self-contact on: `Serial<f64>`
+    /// follows the reference to rounding, `Serial<f32>` and `Rayon` agree
+    /// bit for bit, the list is rebuilt far less often than every substep,
+    /// and nothing ends inside the floor.
     #[test]
-    fn only_the_reference_runs_self_contact_so_far() {
-        let with = Params { self_contact_stiffness: 800.0, ..Params::default() };
-        let refused = |e: Result<(), BackendError>| {
-            matches!(e, Err(BackendError::Unsupported { feature: "self-contact", param: "self_contact_stiffness", .. }))
-        };
-        let mut serial = Serial::<f32>::new();
-        assert!(refused(serial.load(&patch(), &with)));
-        serial.load(&patch(), &Params::default()).unwrap();
-        assert!(refused(serial.set_params(&with)));
-        assert_eq!(serial.model().unwrap().params(), &Params::default());
-        let mut rayon = Rayon::new();
-        assert!(refused(rayon.load(&patch(), &with)));
-        let mut reference = Reference::<f64>::new();
-        reference.load(&patch(), &with).unwrap();
-        reference.advance(10).unwrap();
+    fn self_contact_and_a_floor_run_on_every_cpu_backend() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(6, 6).unwrap(), &Geometry::default()).unwrap();
+        let floor_y = fabric.positions().iter().map(|p| p.y).fold(f64::INFINITY, f64::min) - 1.5;
+        let colliders = [yarn_model::Collider::Plane(yarn_model::Plane::floor(floor_y))];
+        let params = Params { self_contact_stiffness: 800.0, gravity: 100.0, ..Params::default() };
+        let substeps = 400;
+        fn drop_on<B: Backend>(
+            mut backend: B,
+            fabric: &Fabric,
+            params: &Params,
+            colliders: &[yarn_model::Collider],
+            substeps: u64,
+        ) -> (State<f64>, u64) {
+            backend.load(fabric, params).unwrap();
+            backend.set_pins(&[]).unwrap();
+            backend.set_colliders(colliders).unwrap();
+            backend.advance(substeps).unwrap();
+            (backend.state().unwrap().cast(), backend.self_contact_builds().unwrap())
+        }
+        let (reference, reference_builds) = drop_on(Reference::<f64>::new(), &fabric, &params, &colliders, substeps);
+        let (serial, serial_builds) = drop_on(Serial::<f64>::new(), &fabric, &params, &colliders, substeps);
+        let (single, _) = drop_on(Serial::<f32>::new(), &fabric, &params, &colliders, substeps);
+        let (parallel, _) = drop_on(Rayon::with_threads(2).unwrap(), &fabric, &params, &colliders, substeps);
+        let worst = reference.positions.iter().zip(&serial.positions).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+        assert!(worst < 1e-9, "serial f64 strays {worst} from the reference");
+        assert_eq!(single, parallel, "serial f32 and rayon must agree bit for bit");
+        let radius = fabric.yarn_radius();
+        let lowest = serial.positions.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+        assert!(lowest > floor_y + 0.5 * radius, "a node sank to {lowest}, the floor is at {floor_y}");
+        assert!(lowest < floor_y + 2.0 * radius, "the patch never reached the floor: lowest node at {lowest}");
+        for builds in [reference_builds, serial_builds] {
+            assert!((1..substeps / 4).contains(&builds), "{builds} list builds in {substeps} substeps");
+        }
     }
 
     #[test]

@@ -267,6 +267,20 @@ impl Backend for Wgpu {
         self.loaded()?.set_contacts_alive(alive)
     }
 
+    /// As the trait says, but colliders do not run on the GPU yet: any
+    /// collider is [`BackendError::Unsupported`].
+    fn set_colliders(&mut self, colliders: &[yarn_model::Collider]) -> Result<(), BackendError> {
+        let loaded = self.loaded()?;
+        if !colliders.is_empty() {
+            return Err(BackendError::Unsupported {
+                backend: "wgpu",
+                feature: "colliders",
+                remedy: "set no colliders",
+            });
+        }
+        loaded.model.set_colliders(colliders)
+    }
+
     fn write_state(&mut self, state: &State<f32>) -> Result<(), BackendError> {
         self.loaded()?.write_state(state)
     }

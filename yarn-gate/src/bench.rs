@@ -62,6 +62,10 @@ pub struct BenchArgs {
     /// Let blocks of nodes slower than this sleep (CPU backends; 0: never).
     #[arg(long, default_value_t = 0.0)]
     sleep: f64,
+    /// Self-contact stiffness k_sc of the scene; 0 turns it off
+    /// [default: the model's default].
+    #[arg(long)]
+    self_contact: Option<f64>,
     /// Substeps to run before timing, so the fabric settles.
     #[arg(long, default_value_t = 0)]
     settle: u64,
@@ -93,6 +97,7 @@ impl BenchArgs {
             friction: self.friction.unwrap_or(defaults.friction),
             gravity: self.gravity,
             sleep_speed: self.sleep,
+            self_contact_stiffness: self.self_contact.unwrap_or(defaults.self_contact_stiffness),
             ..defaults
         };
         let charts = match &self.pattern {

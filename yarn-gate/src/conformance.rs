@@ -116,6 +116,8 @@ pub struct Scene {
     pub pins: Vec<Pin>,
     /// One liveness flag per contact.
     pub alive: Vec<bool>,
+    /// The colliders.
+    pub colliders: Vec<yarn_model::Collider>,
 }
 
 impl Scene {
@@ -127,6 +129,7 @@ impl Scene {
         backend.load(&self.fabric, &self.params)?;
         backend.set_pins(&self.pins)?;
         backend.set_contacts_alive(&self.alive)?;
+        backend.set_colliders(&self.colliders)?;
         backend.write_state(&self.state)
     }
 
@@ -458,7 +461,7 @@ fn nudged_reference_end(scene: &Scene, factor: f32) -> State<f32> {
 /// Random scenes for `proptest`.
 pub mod strategy {
     use proptest::prelude::*;
-    use yarn_model::{Params, State, V3};
+    use yarn_model::{Params, State, V3, widen};
     use yarn_topology::{
         Chart, Fabric, FabricParts, Geometry, Pattern, Pin, StitchKind, TopologyError, Vec3, YarnSpan,
     };
@@ -502,9 +505,10 @@ pub mod strategy {
                     gravity: g,
                     substep_limit: yarn_model::STABLE_FRACTION,
                     sleep_speed,
-                    // Only the reference backend runs self-contact so far.
+                    // Self-contact and colliders: [`touching_scene`].
                     self_contact_stiffness: 0.0,
                     self_contact_skin: Params::default().self_contact_skin,
+                    collider_stiffness: Params::default().collider_stiffness,
                 };
                 Params { substep: fraction * p.stability_bound(), ..p }
             })
@@ -699,6 +703,74 @@ pub mod strategy {
         scene_of(yarns_fabric())
     }
 
+    /// A scene as [`scene`] makes them with self-contact on and a floor
+    /// under the fabric: stiffnesses k_sc and k_col drawn from 100 to 2,000
+    /// (the substep kept the same fraction of the bound they set), a skin
+    /// of 0.1 to 2 radii, and a plane tilted up to 0.3 rad, 0.5 to 1.2
+    /// radii below the node deepest along its normal, so the lowest nodes
+    /// press into it at most half a radius: deeper, they spring out faster
+    /// than self-contact's movement limit allows. The nodes sit off rest by a fifth of the scene's
+    /// jiggle; the knit's own loops bring segments within 2r (the share is
+    /// checked below).
+    pub fn touching_scene() -> impl Strategy<Value = Scene> {
+        (scene(), 100.0..2000.0f64, 100.0..2000.0f64, 0.1..2.0f64, -0.3..0.3f64, -0.3..0.3f64, 0.5..1.2f64, 0.0..1.0f64)
+            .prop_map(|(scene, k_sc, k_col, skin, tilt_x, tilt_z, lift, mu)| {
+                let p = scene.params;
+                let fraction = p.substep / p.stability_bound();
+                let p =
+                    Params { self_contact_stiffness: k_sc, collider_stiffness: k_col, self_contact_skin: skin, ..p };
+                let params = Params { substep: fraction * p.stability_bound(), ..p };
+                // A fifth of the scene's jiggle: deeper overlaps start faster
+                // than self-contact's movement limit allows.
+                let state = State {
+                    positions: scene
+                        .state
+                        .positions
+                        .iter()
+                        .zip(scene.fabric.positions())
+                        .map(|(x, rest)| {
+                            let rest = V3::new(rest.x as f32, rest.y as f32, rest.z as f32);
+                            rest + (x - rest) * 0.2
+                        })
+                        .collect(),
+                    ..scene.state
+                };
+                let r = scene.fabric.yarn_radius();
+                let normal = Vec3::new(tilt_x.sin(), 1.0, tilt_z.sin()).normalize();
+                let lowest = state.positions.iter().map(|x| widen(x).dot(&normal)).fold(f64::INFINITY, f64::min);
+                let floor =
+                    yarn_model::Plane { point: normal * (lowest - lift * r), normal, thickness: 10.0, friction: mu };
+                Scene { params, state, colliders: vec![yarn_model::Collider::Plane(floor)], ..scene }
+            })
+            .prop_filter("starts with yarn a radius deep in yarn", |scene| deepest_overlap(scene) < DEEPEST_START)
+    }
+
+    /// How deep, in yarn radii, touching scenes may start with one segment
+    /// in another: deeper, the push out passes the movement limit of
+    /// self-contact ([`yarn_model::self_contact::MAX_STEP_RADII`]) and the
+    /// backends report divergence, as they should for a fabric given
+    /// already interpenetrating.
+    pub const DEEPEST_START: f64 = 0.5;
+
+    /// 2r minus the closest distance of any two segments that may touch
+    /// in `scene`'s starting state, in yarn radii (0 when none is within
+    /// 2r).
+    fn deepest_overlap(scene: &Scene) -> f64 {
+        let Ok(model) = yarn_model::Model::<f32>::new(&scene.fabric, &scene.params) else { return f64::INFINITY };
+        let x = &scene.state.positions;
+        let mut pairs = Vec::new();
+        yarn_model::self_contact::find_pairs(&model, x, 0.0, &mut pairs);
+        let r = scene.fabric.yarn_radius();
+        pairs
+            .iter()
+            .map(|&[a, b]| {
+                let (a, b) = (a as usize, b as usize);
+                let end = |i: usize| yarn_model::step::segment_end(&model, i);
+                2.0 - widen(&yarn_model::terms::closest_gap(&x[a], &x[end(a)], &x[b], &x[end(b)]).0).norm() / r
+            })
+            .fold(0.0, f64::max)
+    }
+
     /// A scene on a fabric drawn from `fabric`.
     fn scene_of(fabric: impl Strategy<Value = Fabric>) -> impl Strategy<Value = Scene> {
         (fabric, params(), any::<u64>(), 0.0..0.5f64, 0.0..5.0f64, 0.0..0.1f64, 0.0..0.4f64).prop_map(
@@ -727,7 +799,7 @@ pub mod strategy {
                     .map(|node| Pin { node, target: fabric.positions()[node as usize] })
                     .collect();
                 let alive = (0..fabric.contacts().len()).map(|_| next() >= dead_fraction).collect();
-                Scene { state: state.cast(), fabric, params, pins, alive }
+                Scene { state: state.cast(), fabric, params, pins, alive, colliders: Vec::new() }
             },
         )
     }
@@ -776,7 +848,9 @@ mod tests {
     use proptest::strategy::{Strategy, ValueTree};
     use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 
-    use super::strategy::{BLOCK_CROSSING_SHARE, SLEEP_SHARE, YARNS_BLOCK_CROSSING_SHARE, scene, yarns_scene};
+    use super::strategy::{
+        BLOCK_CROSSING_SHARE, SLEEP_SHARE, YARNS_BLOCK_CROSSING_SHARE, scene, touching_scene, yarns_scene,
+    };
 
     /// The scenes reach what the suite says they do: sleeping parameters
     /// and fabrics across block edges each in their stated share (within
@@ -798,6 +872,32 @@ mod tests {
         assert!(share(&|s| s.params.sleep_speed > 0.0 && s.fabric.node_count() > 512) > 0.02);
         assert!(share(&|s| !s.pins.is_empty()) > 0.2);
         assert!(share(&|s| s.alive.iter().any(|&a| !a)) > 0.2);
+    }
+
+    /// The touching scenes touch: in a third, some pair of segments is
+    /// within 2r at the start (the arch never touches itself; the loops
+    /// do), and in most some node presses into the floor.
+    #[test]
+    fn touching_scenes_touch() {
+        let mut runner =
+            TestRunner::new_with_rng(Config::default(), TestRng::from_seed(RngAlgorithm::ChaCha, &[9; 32]));
+        let scenes: Vec<_> = (0..200).map(|_| touching_scene().new_tree(&mut runner).unwrap().current()).collect();
+        let share = |f: &dyn Fn(&super::Scene) -> bool| scenes.iter().filter(|s| f(s)).count() as f64 / 200.0;
+        let touching = share(&|s| {
+            let model = yarn_model::Model::<f32>::new(&s.fabric, &s.params).unwrap();
+            let mut pairs = Vec::new();
+            yarn_model::self_contact::find_pairs(&model, &s.state.positions, 0.0, &mut pairs);
+            !pairs.is_empty()
+        });
+        let pressing = share(&|s| {
+            let model = yarn_model::Model::<f32>::new(&s.fabric, &s.params).unwrap();
+            let r = s.fabric.yarn_radius() as f32;
+            let mut model = model;
+            model.set_colliders(&s.colliders).unwrap();
+            s.state.positions.iter().any(|x| model.surfaces()[0].depth(x, r).is_some())
+        });
+        println!("segments within 2r in {touching}, a node in the floor in {pressing}");
+        assert!(touching > 0.25 && pressing > 0.5, "touching {touching}, pressing {pressing}");
     }
 
     /// The scenes of several yarns reach what they say: most have two or

@@ -19,6 +19,7 @@ pub mod certificate;
 pub mod check;
 mod cli;
 pub mod conformance;
+pub mod drape;
 pub mod gpucheck;
 pub mod metrics;
 pub mod pareto;

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 use yarn_gate::NO_ADAPTER_EXIT;
 use yarn_gate::bench::BenchArgs;
 use yarn_gate::check::CheckArgs;
+use yarn_gate::drape::DrapeArgs;
 use yarn_gate::gpucheck::GpucheckArgs;
 use yarn_gate::pareto::ParetoArgs;
 use yarn_gate::plotdata::PlotdataArgs;
@@ -38,6 +39,10 @@ enum Command {
     /// Relax a patch, then draw its yarn as tubes into a PNG (and
     /// optionally a Wavefront OBJ mesh).
     Render(RenderArgs),
+    /// Drop a patch, flat or folded, onto a floor under gravity with
+    /// self-contact on, report how close yarn came to yarn and to the
+    /// floor, and draw it (exit code 0 only if nothing passed through).
+    Drape(DrapeArgs),
     /// Measure the data behind the paper's figures 2-4 and write a CSV and
     /// a PNG plot for each.
     Plotdata(PlotdataArgs),
@@ -62,6 +67,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => args.run(),
         Command::Gpucheck(args) => args.run(),
         Command::Render(args) => args.run(),
+        Command::Drape(args) => args.run(),
         Command::Plotdata(args) => args.run(),
         Command::Pareto(args) => args.run(),
         Command::Stress(args) => args.run(),

@@ -83,6 +83,40 @@ macro_rules! conformance {
     };
 }
 
+/// The checks on scenes with self-contact and a floor
+/// ([`strategy::touching_scene`]), for the backends that run them:
+/// `touching!(name, make, tolerance)`.
+macro_rules! touching {
+    ($name:ident, $make:expr, $tolerance:expr) => {
+        mod $name {
+            use super::*;
+
+            proptest! {
+                #![proptest_config(ProptestConfig::with_cases(32))]
+
+                #[test]
+                fn forces_with_self_contact_and_a_floor(scene in strategy::touching_scene()) {
+                    conformance::forces_match_reference($make, &scene, &$tolerance);
+                }
+
+                #[test]
+                fn one_substep_with_self_contact_and_a_floor(scene in strategy::touching_scene()) {
+                    conformance::substep_matches_reference($make, &scene, &$tolerance);
+                }
+
+                #[test]
+                fn trajectory_with_self_contact_and_a_floor(scene in strategy::touching_scene()) {
+                    let compared = conformance::trajectory_matches_reference($make, &scene, &$tolerance);
+                    prop_assume!(compared.is_some(), "too chaotic to compare with the reference");
+                }
+            }
+        }
+    };
+}
+
+touching!(serial_f32_touching, Serial::<f32>::new, Tolerance::CPU_F32);
+touching!(rayon_three_threads_touching, || Rayon::with_threads(3).unwrap(), Tolerance::CPU_F32);
+
 /// The shared GPU, or `None` with the skip counted when this machine has
 /// no adapter ([`yarn_backend_wgpu::testing`]).
 fn gpu() -> Option<Arc<Gpu>> {
@@ -147,6 +181,14 @@ proptest! {
             backend.set_fuse_below(fuse_below);
             conformance::assert_bit_for_bit(backend, Serial::<f32>::new(), &scene);
         }
+    }
+
+    /// `Rayon` is `Serial<f32>` bit for bit with self-contact and a floor:
+    /// the pair passes write each pair's own slots, and each node gathers
+    /// them in pair order whatever thread runs it.
+    #[test]
+    fn rayon_is_serial_f32_bit_for_bit_with_self_contact_and_a_floor(scene in strategy::touching_scene()) {
+        conformance::assert_bit_for_bit(Rayon::with_threads(3).unwrap(), Serial::<f32>::new(), &scene);
     }
 
     /// `Rayon` is `Serial<f32>` bit for bit on several yarns too, sleeping
@@ -242,4 +284,28 @@ fn measure_trajectory_errors() {
         }
     }
     println!("ceilings: {} r, energy {}", conformance::TRAJECTORY_CEILING, conformance::ENERGY_CEILING);
+}
+
+/// The GPU refuses what it does not run yet, saying what to turn off, and
+/// keeps running what it had.
+#[test]
+fn wgpu_refuses_self_contact_and_colliders_until_it_runs_them() {
+    let Some(make) = wgpu(Mode::Gather) else { return };
+    let fabric = Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::default()).unwrap();
+    let with = Params { self_contact_stiffness: 1600.0, ..Params::default() };
+    let mut gpu = make();
+    let refused = |e: Result<(), yarn_model::BackendError>, feature: &str| match e {
+        Err(error @ yarn_model::BackendError::Unsupported { .. }) => {
+            let message = error.to_string();
+            assert!(message.contains(feature) && message.contains("CPU backend"), "{message}");
+        }
+        other => panic!("expected {feature} refused, got {other:?}"),
+    };
+    refused(gpu.load(&fabric, &with), "self-contact");
+    gpu.load(&fabric, &Params::default()).unwrap();
+    refused(gpu.set_params(&with), "self-contact");
+    refused(gpu.set_colliders(&[yarn_model::Collider::Plane(yarn_model::Plane::floor(0.0))]), "colliders");
+    assert_eq!(gpu.model().unwrap().params(), &Params::default());
+    assert!(gpu.model().unwrap().colliders().is_empty());
+    gpu.advance(10).unwrap();
 }

@@ -37,7 +37,7 @@ fn awkward() -> impl Strategy<Value = f64> {
 }
 
 fn params() -> impl Strategy<Value = Params> {
-    (prop::array::uniform13(prop_oneof![12 => Just(None), 1 => awkward().prop_map(Some)])).prop_map(|v| {
+    (prop::array::uniform14(prop_oneof![12 => Just(None), 1 => awkward().prop_map(Some)])).prop_map(|v| {
         let d = Params::default();
         let pick = |k: usize, default: f64| v[k].unwrap_or(default);
         Params {
@@ -54,6 +54,7 @@ fn params() -> impl Strategy<Value = Params> {
             sleep_speed: pick(10, d.sleep_speed),
             self_contact_stiffness: pick(11, d.self_contact_stiffness),
             self_contact_skin: pick(12, d.self_contact_skin),
+            collider_stiffness: pick(13, d.collider_stiffness),
         }
     })
 }

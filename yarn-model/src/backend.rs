@@ -15,6 +15,9 @@ pub enum BackendError {
     /// A pin or fabric part was invalid.
     #[error(transparent)]
     Topology(#[from] TopologyError),
+    /// A collider was invalid.
+    #[error(transparent)]
+    Collider(#[from] crate::ColliderError),
     /// An array has the wrong length for the loaded fabric.
     #[error("{what}: expected {expected} entries for the loaded fabric, got {got}")]
     LengthMismatch {
@@ -77,23 +80,22 @@ pub enum BackendError {
     /// The compute device reported an error or was lost.
     #[error("compute device error: {0}")]
     Device(String),
-    /// The parameters turn on a part of the model this backend does not
-    /// run yet.
-    #[error("the {backend} backend does not run {feature} yet; set `{param}` to 0 or use the reference backend")]
+    /// The scene turns on a part of the model this backend does not run
+    /// yet.
+    #[error("the {backend} backend does not run {feature} yet; {remedy}, or use a CPU backend")]
     Unsupported {
         /// The backend.
         backend: &'static str,
         /// The part of the model.
         feature: &'static str,
-        /// The parameter that turns it on.
-        param: &'static str,
+        /// What turns it off, e.g. "set `self_contact_stiffness` to 0".
+        remedy: &'static str,
     },
 }
 
 impl BackendError {
-    /// `Ok` unless `params` turn on self-contact, which only the reference
-    /// backend runs so far: then [`BackendError::Unsupported`] naming
-    /// `backend`.
+    /// `Ok` unless `params` turn on self-contact, which `backend` does not
+    /// run yet: then [`BackendError::Unsupported`] naming it.
     ///
     /// # Errors
     /// As above.
@@ -102,7 +104,7 @@ impl BackendError {
             return Err(BackendError::Unsupported {
                 backend,
                 feature: "self-contact",
-                param: "self_contact_stiffness",
+                remedy: "set `self_contact_stiffness` to 0",
             });
         }
         Ok(())
@@ -127,7 +129,7 @@ impl BackendError {
 /// ## Design
 ///
 /// The trait is a handful of required primitives (load, parameters, pins,
-/// contact liveness, state in and out, one force accumulation, and
+/// colliders, contact liveness, state in and out, one force accumulation, and
 /// `advance(n)`) because those are exactly what differ between a serial
 /// loop, a thread pool and a GPU queue. Everything else (energy, metrics,
 /// probes) is computed once, above the backend, from the state it returns.
@@ -178,6 +180,14 @@ pub trait Backend {
     /// # Errors
     /// [`BackendError::Topology`] for a bad pin, or [`BackendError::NotLoaded`].
     fn set_pins(&mut self, pins: &[Pin]) -> Result<(), BackendError>;
+
+    /// Replace the colliders the fabric meets ([`crate::collider`]); a
+    /// fabric loads with none.
+    ///
+    /// # Errors
+    /// [`BackendError::Collider`] for a bad collider (the colliders are
+    /// unchanged), or [`BackendError::NotLoaded`].
+    fn set_colliders(&mut self, colliders: &[crate::Collider]) -> Result<(), BackendError>;
 
     /// Set the liveness of every contact, one flag per contact. A contact
     /// that comes alive away from its rest separation is re-seated at its
@@ -256,6 +266,13 @@ pub trait Backend {
         let state = self.state()?.cast::<f64>();
         let ruler = self.model()?.in_f64(fabric)?;
         Ok((step::energy(&ruler, &state), state))
+    }
+
+    /// How many times the self-contact candidate lists have been built
+    /// since load ([`crate::self_contact`]), for reports; `None` where the
+    /// backend does not count them.
+    fn self_contact_builds(&self) -> Option<u64> {
+        None
     }
 
     /// The current state, freshly allocated.

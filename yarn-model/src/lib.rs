@@ -28,6 +28,7 @@
 #![forbid(unsafe_code)]
 
 mod backend;
+pub mod collider;
 mod model;
 mod params;
 mod real;
@@ -41,6 +42,7 @@ pub mod step;
 pub mod terms;
 
 pub use backend::{Backend, BackendError};
+pub use collider::{Collider, ColliderError, Plane};
 pub use model::{Coefficients, ContactRest, DIVERGENCE_REACH, Model, RESEAT_SPEED, Reseat, State};
 pub use params::{ParamError, Params, SLEEP_AFTER, STABLE_FRACTION};
 pub use real::{Real, V3, widen};

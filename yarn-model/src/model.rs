@@ -7,9 +7,10 @@ use yarn_topology::{Fabric, Link, Pin, YarnSpan, available_memory, check_memory}
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use crate::collider::Surface;
 use crate::real::{cast, widen};
 use crate::self_contact::{ContactRule, MAX_STEP_RADII};
-use crate::{BackendError, Params, Real, V3};
+use crate::{BackendError, Collider, Params, Real, V3};
 
 /// The parameters in a backend's precision, with the derived factors the
 /// substep uses (SPEC §4).
@@ -40,6 +41,14 @@ pub struct Coefficients<T> {
     pub friction_impulse: T,
     /// Self-contact stiffness k_sc (0: off).
     pub self_contact: T,
+    /// h k_sc / m: the velocity change per unit self-contact depth on a
+    /// node of unit share, used by the friction filter.
+    pub self_contact_impulse: T,
+    /// Collider stiffness k_col.
+    pub collider: T,
+    /// h k_col / m: the velocity change per unit collider depth, used by
+    /// the friction filter.
+    pub collider_impulse: T,
 }
 
 impl<T: Real> Coefficients<T> {
@@ -58,6 +67,9 @@ impl<T: Real> Coefficients<T> {
             damping_factor: T::of(1.0 / (1.0 + p.damping * p.substep)),
             friction_impulse: T::of(p.substep * p.contact_stiffness / (0.5 * p.mass)),
             self_contact: T::of(p.self_contact_stiffness),
+            self_contact_impulse: T::of(p.substep * p.self_contact_stiffness / p.mass),
+            collider: T::of(p.collider_stiffness),
+            collider_impulse: T::of(p.substep * p.collider_stiffness / p.mass),
         }
     }
 }
@@ -162,6 +174,9 @@ pub struct Model<T> {
     /// Changes whenever the parameters or contact liveness do; unique
     /// across models ([`Model::revision`]).
     revision: u64,
+    /// The colliders as given, and as the substep uses them.
+    colliders: Vec<Collider>,
+    surfaces: Vec<Surface<T>>,
 }
 
 /// The source of [`Model::revision`]s.
@@ -208,6 +223,8 @@ impl<T: Real> Model<T> {
             segment_rest: rest.iter().map(|&l| T::of(l)).collect(),
             rule: ContactRule::new(fabric.yarn_radius(), fabric.yarns(), &rest),
             revision: next_revision(),
+            colliders: Vec::new(),
+            surfaces: Vec::new(),
             joint_rest,
             springs: fabric.springs().len(),
             joints: fabric.triples().len(),
@@ -246,6 +263,7 @@ impl<T: Real> Model<T> {
         let mut model = Model::<f64>::build(fabric, &self.params)?;
         model.pins = self.pins.iter().map(|(node, target)| (*node, widen(target))).collect();
         model.alive.clone_from(&self.alive);
+        model.set_colliders(&self.colliders)?;
         for r in &self.reseating {
             model.contacts[r.contact as usize].rest = self.contacts[r.contact as usize].rest.to_f64();
             model.reseating.push(Reseat { contact: r.contact, knit: r.knit.to_f64() });
@@ -386,6 +404,27 @@ impl<T: Real> Model<T> {
         yarn_topology::validate_pins(pins, self.nodes)?;
         self.pins = pins.iter().map(|p| (p.node, cast(&p.target))).collect();
         Ok(())
+    }
+
+    /// Replace the colliders ([`crate::collider`]); none after load.
+    ///
+    /// # Errors
+    /// [`BackendError::Collider`] naming the first bad collider; the model
+    /// is unchanged.
+    pub fn set_colliders(&mut self, colliders: &[Collider]) -> Result<(), BackendError> {
+        self.surfaces = Surface::all(colliders)?;
+        self.colliders = colliders.to_vec();
+        Ok(())
+    }
+
+    /// The colliders as given.
+    pub fn colliders(&self) -> &[Collider] {
+        &self.colliders
+    }
+
+    /// The colliders as the substep uses them, validated and in `T`.
+    pub fn surfaces(&self) -> &[Surface<T>] {
+        &self.surfaces
     }
 
     /// Each node's alive contacts, for backends that gather per node: the

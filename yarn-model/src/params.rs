@@ -58,14 +58,21 @@ pub struct Params {
     /// Self-contact stiffness k_sc: two segments of yarn closer than one
     /// yarn diameter 2r are pushed apart with the energy ½ k_sc (2r − d)²,
     /// d their closest distance ([`crate::self_contact`]). 0 turns
-    /// self-contact off; only the reference backend runs it so far
-    /// (default: 0).
+    /// self-contact off. The CPU backends run it; the GPU does not yet.
+    /// 1,600 (twice k_s) held a folded patch dropped on a floor to
+    /// 1.88 r at worst (`yarn-gate drape`) (default: 0).
     pub self_contact_stiffness: f64,
     /// The skin of the self-contact candidate lists, in yarn radii: a list
     /// holds the pairs within 2r plus this, and is rebuilt once some node
     /// has moved half of it. Larger rebuilds less often but checks more
     /// pairs each substep (default: 0.5).
     pub self_contact_skin: f64,
+    /// Collider stiffness k_col: a node whose centreline comes closer than
+    /// the yarn radius r to a collider's surface is pushed out with the
+    /// energy ½ k_col δ² of its depth δ ([`crate::Collider`]). Stiffer
+    /// holds the yarn closer to r but shrinks the stable substep once it
+    /// passes k_s (default: 800).
+    pub collider_stiffness: f64,
 }
 
 /// Substeps a block must stay below [`Params::sleep_speed`] before it
@@ -115,6 +122,9 @@ impl Params {
             // The paper's model has no self-contact.
             self_contact_stiffness: 0.0,
             self_contact_skin: 0.5,
+            // As stiff as the yarn's stretch, so a floor never lowers the
+            // stability bound; colliders exist only where a scene sets them.
+            collider_stiffness: 800.0,
         }
     }
 }
@@ -174,13 +184,16 @@ fn limit_note(bound: f64, analytic: f64) -> String {
 impl Params {
     /// ω_max = sqrt(k_max / m) for the stiffest element, in 1/s (SPEC §1).
     ///
-    /// k_max is the largest of the stretch, contact and self-contact
-    /// stiffnesses (a self-contact's push, shared by the two nodes of each
-    /// segment, loads no node with more than k_sc). Bending
+    /// k_max is the largest of the stretch, contact, self-contact and
+    /// collider stiffnesses (a self-contact's push, shared by the two nodes
+    /// of each segment, loads no node with more than k_sc). Bending
     /// acts as a stiffness near k_b/ℓ², which depends on segment lengths and
     /// is far below k_s at the default gauge, so it is left out.
     pub fn omega_max(&self) -> f64 {
-        (self.stretch_stiffness.max(self.contact_stiffness).max(self.self_contact_stiffness) / self.mass).sqrt()
+        let k_max = [self.contact_stiffness, self.self_contact_stiffness, self.collider_stiffness]
+            .into_iter()
+            .fold(self.stretch_stiffness, f64::max);
+        (k_max / self.mass).sqrt()
     }
 
     /// The explicit stability bound h < 2/ω_max, in seconds (SPEC §1).
@@ -215,6 +228,7 @@ impl Params {
             ("sleep_speed", self.sleep_speed, NonNegative),
             ("self_contact_stiffness", self.self_contact_stiffness, NonNegative),
             ("self_contact_skin", self.self_contact_skin, Positive),
+            ("collider_stiffness", self.collider_stiffness, Positive),
         ];
         for (name, value, valid) in fields {
             if !value.is_finite() {
@@ -285,6 +299,7 @@ mod tests {
             ("sleep_speed", defaults.sleep_speed),
             ("self_contact_stiffness", defaults.self_contact_stiffness),
             ("self_contact_skin", defaults.self_contact_skin),
+            ("collider_stiffness", defaults.collider_stiffness),
         ];
         let mut doc = String::new();
         let mut checked = 0;

@@ -172,6 +172,10 @@ mod tests {
             model.set_contacts_alive(alive, &state.positions)
         }
 
+        fn set_colliders(&mut self, colliders: &[crate::Collider]) -> Result<(), BackendError> {
+            self.loaded()?.0.set_colliders(colliders)
+        }
+
         fn write_state(&mut self, state: &State<f64>) -> Result<(), BackendError> {
             self.loaded()?.1.clone_from(state);
             Ok(())

@@ -3,12 +3,13 @@
 //! every backend must compute; `yarn_backend_cpu::Reference` runs it as is,
 //! and the conformance suite holds the fast backends to it.
 
+use crate::collider::Surface;
 use crate::self_contact::{Candidates, find_pairs};
 use crate::terms::{
-    bend_energy, bend_forces, gravity_energy, gravity_force, self_contact_energy, self_contact_forces, spring_energy,
-    spring_force,
+    bend_energy, bend_forces, closest_gap, gravity_energy, gravity_force, self_contact_energy, self_contact_forces,
+    spring_energy, spring_force,
 };
-use crate::{Model, Real, State, V3};
+use crate::{Coefficients, Model, Real, State, V3};
 
 /// The skin, in yarn radii, of a self-contact search made for one
 /// evaluation ([`accumulate_forces`], [`potential`]): a margin over 2r for
@@ -18,7 +19,7 @@ const FRESH_SKIN_RADII: f64 = 1e-3;
 
 /// The node at the far end of the segment that node `a` starts (`a` itself
 /// where none leaves it, which a candidate pair never names).
-fn segment_end<T: Real>(model: &Model<T>, a: usize) -> usize {
+pub fn segment_end<T: Real>(model: &Model<T>, a: usize) -> usize {
     model.links()[a].next().map_or(a, |n| n as usize)
 }
 
@@ -43,6 +44,8 @@ pub struct Energy {
     pub contact: f64,
     /// Σ ½ k_sc (2r − d)² over segment pairs in self-contact.
     pub self_contact: f64,
+    /// Σ ½ k_col δ² over nodes pressing into a collider.
+    pub collider: f64,
     /// Σ m g y.
     pub gravity: f64,
     /// Σ ½ m |v|².
@@ -52,7 +55,7 @@ pub struct Energy {
 impl Energy {
     /// The potential U (SPEC §3).
     pub fn potential(&self) -> f64 {
-        self.stretch + self.bend + self.contact + self.self_contact + self.gravity
+        self.stretch + self.bend + self.contact + self.self_contact + self.collider + self.gravity
     }
 
     /// Potential plus kinetic energy.
@@ -66,8 +69,12 @@ impl Energy {
 pub struct Scratch<T: Real> {
     /// Force per node from the last accumulation.
     pub forces: Vec<V3<T>>,
-    /// Friction velocity correction per node (SPEC §4 step 3).
+    /// Friction velocity correction per node from the persistent contacts
+    /// (SPEC §4 step 3).
     pub friction: Vec<V3<T>>,
+    /// Per node: its self-contacts' friction corrections, in pair order
+    /// ([`self_contact_friction`]).
+    pub self_friction: Vec<Vec<V3<T>>>,
     /// The self-contact candidate list, kept between substeps.
     pub candidates: Candidates<T>,
 }
@@ -76,7 +83,8 @@ pub struct Scratch<T: Real> {
 /// which is resized to the node count. Springs and joints follow each
 /// yarn ([`Model::springs`], [`Model::joints`]), wrapping around closed
 /// ones, and never join two. With self-contact on, every segment pair
-/// within reach pushes apart ([`crate::self_contact`]).
+/// within reach pushes apart ([`crate::self_contact`]); every node pressing
+/// into a collider is pushed out ([`crate::collider`]).
 pub fn accumulate_forces<T: Real>(model: &Model<T>, x: &[V3<T>], forces: &mut Vec<V3<T>>) {
     accumulate_forces_over(model, x, &touching(model, x), forces);
 }
@@ -114,6 +122,14 @@ fn accumulate_forces_over<T: Real>(model: &Model<T>, x: &[V3<T>], pairs: &[[u32;
             forces[a1] += f[1];
             forces[b0] += f[2];
             forces[b1] += f[3];
+        }
+    }
+    let radius = T::of(model.contact_rule().radius());
+    for surface in model.surfaces() {
+        for (f, x) in forces.iter_mut().zip(x) {
+            if let Some(push) = surface.force(x, radius, c.collider) {
+                *f += push;
+            }
         }
     }
 }
@@ -157,6 +173,10 @@ pub fn potential<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Energy {
                 )
             }))
         },
+        collider: {
+            let radius = T::of(model.contact_rule().radius());
+            sum(&mut model.surfaces().iter().flat_map(|s| x.iter().map(move |p| s.energy(p, radius, c.collider))))
+        },
         gravity: sum(&mut x.iter().map(|p| gravity_energy(p, c.mass, c.gravity))),
         kinetic: 0.0,
     }
@@ -193,12 +213,78 @@ pub fn friction_change<T: Real>(
     Some(wt * (retention - T::one()))
 }
 
+/// Friction velocity changes of one self-contact pair, segments p0p1 and
+/// q0q1 (SPEC §4 step 3 at their closest points): the change to each
+/// node's velocity, or `None` when they are not within `reach` or do not
+/// slip.
+///
+/// With closest points at (s, t), the nodes' shares in the contact are
+/// (1 − s, s, 1 − t, t), and the slip is the tangential part of
+/// w = v_q(t) − v_p(s). An impulse j on the pair changes w by j W, with
+/// W m = (1 − s)² + s² + (1 − t)² + t² the pair's inverse effective mass
+/// (2 for two nodes, as a persistent contact has). Coulomb's limit
+/// |j| ≤ μ h k_sc (2r − d) lets it cut the slip by at most
+/// μ h k_sc (2r − d) W, never past zero; each node then gets its share of
+/// j. Summed at a node, the changes are capped by [`capped_sum`], so many
+/// contacts at one node cannot reverse its slip.
+#[inline]
+pub fn self_contact_friction<T: Real>(
+    x: [&V3<T>; 4],
+    v: [&V3<T>; 4],
+    reach: T,
+    c: &Coefficients<T>,
+) -> Option<[V3<T>; 4]> {
+    let (gap, s, t) = closest_gap(x[0], x[1], x[2], x[3]);
+    let d = gap.norm();
+    if !(d < reach && d > T::zero()) {
+        return None;
+    }
+    let n = gap / d;
+    let one = T::one();
+    let shares = [one - s, s, one - t, t];
+    let w = (v[2] * shares[2] + v[3] * shares[3]) - (v[0] * shares[0] + v[1] * shares[1]);
+    let wt = w - n * w.dot(&n);
+    let slip = wt.norm();
+    if slip <= T::zero() {
+        return None;
+    }
+    let inverse_mass = shares.iter().fold(T::zero(), |sum, &share| sum + share * share);
+    let cut = c.friction * c.self_contact_impulse * (reach - d) * inverse_mass;
+    let retention = (one - cut / slip).max(T::zero());
+    let j = wt * ((retention - one) / inverse_mass);
+    Some([-(j * shares[0]), -(j * shares[1]), j * shares[2], j * shares[3]])
+}
+
+/// The sum of the friction changes `changes` at one node, in order, cut
+/// back to the length of the longest of them. Each change alone never
+/// reverses its contact's slip, but several contacts slipping the same way
+/// would add up to more than any one of them wants; the cap keeps the node
+/// to what its strongest contact asks. It is continuous in every change,
+/// so a contact that barely touches or barely slips moves the result
+/// barely.
+#[inline]
+pub fn capped_sum<T: Real>(changes: impl IntoIterator<Item = V3<T>>) -> V3<T> {
+    let (sum, longest) =
+        changes.into_iter().fold((V3::zeros(), T::zero()), |(sum, longest), dv| (sum + dv, longest.max(dv.norm())));
+    let length = sum.norm();
+    if length > longest { sum * (longest / length) } else { sum }
+}
+
+/// The friction change of every collider at a node at `x` with velocity
+/// `v` ([`Surface::friction_change`]), summed in collider order.
+#[inline]
+pub fn collider_friction<T: Real>(surfaces: &[Surface<T>], x: &V3<T>, v: &V3<T>, radius: T, impulse: T) -> V3<T> {
+    surfaces.iter().fold(V3::zeros(), |dv, s| s.friction_change(x, v, radius, impulse).map_or(dv, |change| dv + change))
+}
+
 /// One substep (SPEC §4), in place:
 /// 1. F = −∇U(x) over alive contacts, and with self-contact on over the
 ///    pairs of the candidate list in `scratch`, refreshed first;
 /// 2. v* = (v + hF/m) / (1 + βh);
-/// 3. Jacobi friction: every compressed alive contact's correction computed
-///    from v* and x, summed, then applied;
+/// 3. Jacobi friction: every compressed alive contact's correction, every
+///    self-contact's ([`self_contact_friction`], capped per node) and
+///    every collider's, computed from v* and x, then applied in that
+///    order;
 /// 4. x' = x + h v**;
 /// 5. pinned nodes set to their targets with zero velocity.
 pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Scratch<T>) {
@@ -213,10 +299,11 @@ pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Sc
     for (v, f) in state.velocities.iter_mut().zip(&scratch.forces) {
         *v = (*v + f * c.h_over_m) * c.damping_factor;
     }
-    if c.friction > T::zero() {
-        let (x, v) = (&state.positions, &state.velocities);
-        scratch.friction.clear();
-        scratch.friction.resize(x.len(), V3::zeros());
+    let (x, v) = (&state.positions, &mut state.velocities);
+    let yarn_friction = c.friction > T::zero();
+    scratch.friction.clear();
+    scratch.friction.resize(x.len(), V3::zeros());
+    if yarn_friction {
         for (k, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
             let (a, b) = (k.a as usize, k.b as usize);
             if let Some(dw) = friction_change(&x[a], &x[b], &v[a], &v[b], k.rest, model) {
@@ -225,8 +312,30 @@ pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Sc
                 scratch.friction[b] += half;
             }
         }
-        for (v, dv) in state.velocities.iter_mut().zip(&scratch.friction) {
-            *v += dv;
+    }
+    // Each node's self-contact changes, in pair order.
+    for list in &mut scratch.self_friction {
+        list.clear();
+    }
+    scratch.self_friction.resize_with(x.len(), Vec::new);
+    if yarn_friction {
+        let reach = T::of(2.0 * model.contact_rule().radius());
+        for &[a, b] in pairs {
+            let nodes = [a as usize, segment_end(model, a as usize), b as usize, segment_end(model, b as usize)];
+            if let Some(dv) = self_contact_friction(nodes.map(|i| &x[i]), nodes.map(|i| &v[i]), reach, c) {
+                for (i, dv) in nodes.into_iter().zip(dv) {
+                    scratch.self_friction[i].push(dv);
+                }
+            }
+        }
+    }
+    let radius = T::of(model.contact_rule().radius());
+    for (i, v) in v.iter_mut().enumerate() {
+        let v_star = *v;
+        *v += scratch.friction[i];
+        *v += capped_sum(scratch.self_friction[i].iter().copied());
+        if !model.surfaces().is_empty() {
+            *v += collider_friction(model.surfaces(), &x[i], &v_star, radius, c.collider_impulse);
         }
     }
     for (x, v) in state.positions.iter_mut().zip(&state.velocities) {
@@ -657,6 +766,60 @@ mod tests {
             substep(&two_node_contact(&Params { friction: 0.0, ..params }), &mut without, &mut Scratch::default());
             prop_assert_eq!(with, without, "friction acted on a contact stretched to {}", stretched);
         }
+    }
+
+    proptest! {
+        /// Friction at a self-contact pair, random segments and velocities:
+        /// the pair's slip at its closest points shrinks by at most
+        /// μ h k_sc (2r − d) W and never reverses, its normal relative
+        /// velocity is kept, and the nodes' changes carry no net momentum.
+        #[test]
+        fn self_contact_friction_cuts_the_pairs_slip_without_reversing_it(
+            ends in prop::array::uniform4((-1.5..1.5f64, -1.5..1.5f64, -0.8..0.8f64)),
+            speeds in prop::array::uniform4((-5.0..5.0f64, -5.0..5.0f64, -5.0..5.0f64)),
+            mu in 0.0..2.0f64,
+        ) {
+            let params = Params { friction: mu, self_contact_stiffness: 800.0, ..Params::default() };
+            let c = Coefficients::<f64>::new(&params);
+            let x = ends.map(|(a, b, z)| V3::new(a, b, z));
+            let v = speeds.map(|(a, b, z)| V3::new(a, b, z));
+            let reach = 1.8;
+            let (gap, s, t) = closest_gap(&x[0], &x[1], &x[2], &x[3]);
+            prop_assume!(gap.norm() < reach && gap.norm() > 1e-3);
+            let n = gap.normalize();
+            let at = |v: &[V3<f64>; 4]| (v[2] * (1.0 - t) + v[3] * t) - (v[0] * (1.0 - s) + v[1] * s);
+            let tangential = |w: V3<f64>| w - n * w.dot(&n);
+            let before = tangential(at(&v));
+            let Some(dv) = self_contact_friction(x.each_ref(), v.each_ref(), reach, &c) else {
+                prop_assert!(before.norm() == 0.0, "no friction on a pair within reach");
+                return Ok(());
+            };
+            let after_v = [v[0] + dv[0], v[1] + dv[1], v[2] + dv[2], v[3] + dv[3]];
+            let after = tangential(at(&after_v));
+            let shares = [(1.0 - s), s, (1.0 - t), t];
+            let w_m = shares.iter().map(|a| a * a).sum::<f64>();
+            let cut = mu * c.self_contact_impulse * (reach - gap.norm()) * w_m;
+            let expected = (before.norm() - cut).max(0.0);
+            prop_assert!((after.norm() - expected).abs() <= 1e-9 * (1.0 + before.norm()), "slip {} -> {}, not {expected}", before.norm(), after.norm());
+            prop_assert!(after.dot(&before) >= -1e-12, "the slip reversed");
+            prop_assert!((at(&after_v) - at(&v)).dot(&n).abs() <= 1e-9 * (1.0 + before.norm()), "the normal velocity changed");
+            prop_assert!((dv[0] + dv[1] + dv[2] + dv[3]).norm() <= 1e-12 * (1.0 + before.norm()), "net momentum {dv:?}");
+        }
+    }
+
+    /// The sum at a node is cut back to its longest change: one change
+    /// passes as it is, changes the same way add up to no more than the
+    /// longest, and opposite ones still cancel.
+    #[test]
+    fn capped_sum_keeps_a_node_to_its_strongest_contact() {
+        let a = V3::new(0.3, -0.4, 0.0);
+        assert_eq!(capped_sum([a]), a);
+        assert!((capped_sum([a, a, a]) - a).norm() < 1e-15);
+        assert_eq!(capped_sum([a, -a]), V3::zeros());
+        let b = V3::new(0.0, 0.0, 1.0);
+        let sum: V3<f64> = capped_sum([a, b]);
+        assert!((sum.norm() - 1.0).abs() < 1e-15 && sum.dot(&(a + b)) > 0.0, "{sum:?}");
+        assert_eq!(capped_sum(std::iter::empty::<V3<f64>>()), V3::zeros());
     }
 
     #[test]

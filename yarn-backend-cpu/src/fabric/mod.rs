@@ -5,9 +5,22 @@
 //! Its rooms: `field.rs` (the storage layout), `contacts.rs` (the live
 //! contact lists), `sleep.rs` (which blocks sleep), `passes.rs` (the
 //! substep's passes and their arithmetic), `chain.rs` (where yarns end or
-//! wrap, and the force there) and `rollback.rs` (putting a failed advance
-//! back). This file ties them together and owns the order
+//! wrap, and the force there), `touching.rs` (self-contact and colliders)
+//! and `rollback.rs` (putting a failed advance back). This file ties them together and owns the order
 //! of a substep's bookkeeping around the passes.
+
+/// Run one pass: the same `body` over a sequential or a parallel iterator.
+macro_rules! run_pass {
+    ($exec:expr, $sequential:expr, $parallel:expr, $min_len:expr, $body:expr) => {
+        match $exec {
+            crate::fabric::Exec::Sequential => $sequential.for_each($body),
+            crate::fabric::Exec::Parallel => {
+                use rayon::prelude::*;
+                $parallel.with_min_len($min_len).for_each($body)
+            }
+        }
+    };
+}
 
 mod chain;
 mod contacts;
@@ -15,6 +28,7 @@ mod field;
 mod passes;
 mod rollback;
 mod sleep;
+mod touching;
 
 use std::sync::Mutex;
 use std::sync::atomic::AtomicBool;
@@ -29,6 +43,7 @@ use field::Field;
 pub(crate) use passes::Exec;
 use passes::Scratch;
 use sleep::{SLEEP_CHECK, Sleep};
+use touching::SelfContacts;
 
 const RESEAT: &[Stage] = &[Stage::Reseat];
 const SLEEP: &[Stage] = &[Stage::Sleep];
@@ -49,6 +64,8 @@ pub(crate) struct CpuFabric<T: Real> {
     /// ([`chain::breaks`]), ascending.
     breaks: Vec<u32>,
     contacts: LiveContacts<T>,
+    /// The self-contact candidate list and its per-pair buffers.
+    touching: SelfContacts<T>,
     sleep: Sleep,
     /// One scratch per thread that may run blocks, by rayon thread index;
     /// each is locked only by its own thread.
@@ -69,7 +86,6 @@ pub(crate) struct CpuFabric<T: Real> {
 impl<T: Real> CpuFabric<T> {
     /// Load `fabric` at rest, to run with `threads` threads as `exec` says.
     pub(crate) fn new(fabric: &Fabric, params: &Params, exec: Exec, threads: usize) -> Result<Self, BackendError> {
-        BackendError::unless_self_contact(params, "serial and rayon")?;
         let model = Model::<T>::new(fabric, params)?;
         let n = model.node_count();
         let state = State::<T>::at_rest(fabric);
@@ -80,6 +96,7 @@ impl<T: Real> CpuFabric<T> {
             target: Vec::new(),
             breaks: chain::breaks(&model),
             contacts: LiveContacts::default(),
+            touching: SelfContacts::default(),
             sleep: Sleep::new(&model),
             scratch: (0..threads.max(1)).map(|_| Mutex::new(Scratch::new())).collect(),
             exec,
@@ -111,7 +128,6 @@ impl<T: Real> CpuFabric<T> {
     }
 
     pub(crate) fn set_params(&mut self, params: &Params) -> Result<(), BackendError> {
-        BackendError::unless_self_contact(params, "serial and rayon")?;
         self.model.set_params(params)?;
         self.refresh_targets();
         self.wake_all();
@@ -122,6 +138,17 @@ impl<T: Real> CpuFabric<T> {
         self.model.set_pins(pins)?;
         self.wake_all();
         Ok(())
+    }
+
+    pub(crate) fn set_colliders(&mut self, colliders: &[yarn_model::Collider]) -> Result<(), BackendError> {
+        self.model.set_colliders(colliders)?;
+        self.wake_all();
+        Ok(())
+    }
+
+    /// How many times the self-contact candidate list has been built.
+    pub(crate) fn self_contact_builds(&self) -> u64 {
+        self.touching.builds()
     }
 
     pub(crate) fn set_contacts_alive(&mut self, alive: &[bool]) -> Result<(), BackendError> {

@@ -39,6 +39,7 @@ use std::sync::PoisonError;
 use std::sync::atomic::Ordering;
 
 use yarn_model::stages::{self, Stage};
+use yarn_model::step::collider_friction;
 use yarn_model::terms::{MIN_SIN_THETA, gravity_force};
 use yarn_model::{Real, V3};
 
@@ -56,6 +57,10 @@ const TASK_BLOCKS: usize = 2;
 /// a block).
 const TASK_CONTACTS: usize = 2048;
 
+/// Fewest blocks of self-contact pair slots per rayon task: a block holds
+/// [`BLOCK`] / 4 pairs, each about as costly as a node's share of a block.
+const TASK_PAIRS: usize = 8;
+
 /// How the blocks of a pass are run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Exec {
@@ -63,19 +68,6 @@ pub(crate) enum Exec {
     Sequential,
     /// On the current rayon pool.
     Parallel,
-}
-
-/// Run one pass: the same `body` over a sequential or a parallel iterator.
-macro_rules! run_pass {
-    ($exec:expr, $sequential:expr, $parallel:expr, $min_len:expr, $body:expr) => {
-        match $exec {
-            Exec::Sequential => $sequential.for_each($body),
-            Exec::Parallel => {
-                use rayon::prelude::*;
-                $parallel.with_min_len($min_len).for_each($body)
-            }
-        }
-    };
 }
 
 /// What each timed pass covers (the stage counters).
@@ -107,6 +99,8 @@ pub(crate) struct Scratch<T> {
     /// Per contact of a contact block: x_b − x_a and v_b − v_a.
     gap: Field<T>,
     relative: Field<T>,
+    /// Per node of a block: the colliders' friction change from v*.
+    collider_friction: Field<T>,
 }
 
 impl<T: Real> Scratch<T> {
@@ -120,6 +114,7 @@ impl<T: Real> Scratch<T> {
             force: Field::zeros(BLOCK),
             gap: Field::zeros(BLOCK),
             relative: Field::zeros(BLOCK),
+            collider_friction: Field::zeros(BLOCK),
         }
     }
 }
@@ -129,6 +124,7 @@ impl<T: Real> CpuFabric<T> {
     pub(crate) fn compute_forces(&mut self, forces: &mut Vec<V3<T>>) {
         // Every node's force needs every alive contact.
         self.wake_all();
+        self.self_contact_forces();
         self.contact_forces();
         let mut field = Field::zeros(self.model.node_count());
         let this = &*self;
@@ -165,6 +161,26 @@ impl<T: Real> CpuFabric<T> {
             body
         );
         self.contacts.force = contact_force;
+    }
+
+    /// Self-contact, before the block pass: rebuild the candidate list if
+    /// it may miss a pair within reach, then the force of every pair on
+    /// its four nodes, into its slots.
+    fn self_contact_forces(&mut self) {
+        if !self.model.self_contact() {
+            return;
+        }
+        if self.touching.stale(&self.model, &self.positions, self.exec) {
+            self.touching.rebuild(&self.model, &self.positions);
+            self.sleep.set_touching(&self.model, self.touching.segment_pairs());
+        }
+        let mut force = std::mem::take(&mut self.touching.force);
+        let this = &*self;
+        let body = |(block, mut out): (usize, BlockMut<'_, T>)| {
+            this.touching.forces_block(&this.model, &this.positions, block, &mut out);
+        };
+        run_pass!(self.exec, force.blocks_mut().enumerate(), force.par_blocks_mut().enumerate(), TASK_PAIRS, body);
+        self.touching.force = force;
     }
 
     /// Gather x_b − x_a of contacts `range` into `scratch.gap`, and, with
@@ -262,6 +278,25 @@ impl<T: Real> CpuFabric<T> {
             let f = group.iter().fold(force.get(i), |f, e| f + self.contacts.force.get(e.contact as usize) * e.sign);
             force.set(i, f);
         }
+        if self.model.self_contact() {
+            for i in lo..hi {
+                let slots = self.touching.slots_of(i);
+                if !slots.is_empty() {
+                    let f = slots.iter().fold(force.get(i - lo), |f, &s| f + self.touching.force.get(s as usize));
+                    force.set(i - lo, f);
+                }
+            }
+        }
+        let surfaces = self.model.surfaces();
+        if !surfaces.is_empty() {
+            let (radius, k) = (T::of(self.model.contact_rule().radius()), c.collider);
+            for i in lo..hi {
+                let x = self.positions.get(i);
+                let f =
+                    surfaces.iter().fold(force.get(i - lo), |f, s| s.force(&x, radius, k).map_or(f, |push| f + push));
+                force.set(i - lo, f);
+            }
+        }
     }
 
     /// Segments lo−2 ..= hi (local 0 ..= len+2) of block [lo, hi), each
@@ -351,8 +386,9 @@ impl<T: Real> CpuFabric<T> {
     pub(crate) fn substep(&mut self) {
         let c = *self.model.coeffs();
         let limit = T::of(self.model.divergence_speed());
-        let apply_friction = c.friction > T::zero();
+        let apply_friction = c.friction > T::zero() || self.model.surfaces().iter().any(|s| s.friction > T::zero());
         let started = stages::start(&self.clock);
+        self.self_contact_forces();
         self.contact_forces();
         stages::stop(&mut self.clock, "contact forces", CONTACT_FORCES, started);
         let started = stages::start(&self.clock);
@@ -432,9 +468,26 @@ impl<T: Real> CpuFabric<T> {
             body
         );
         self.contacts.friction = friction;
+        if self.model.self_contact() && self.model.coeffs().friction > T::zero() {
+            let mut friction = std::mem::take(&mut self.touching.friction);
+            let this = &*self;
+            let body = |(block, mut out): (usize, BlockMut<'_, T>)| {
+                let state = (&this.positions, &this.velocities);
+                this.touching.friction_block(&this.model, state, block, &mut out);
+            };
+            run_pass!(
+                self.exec,
+                friction.blocks_mut().enumerate(),
+                friction.par_blocks_mut().enumerate(),
+                TASK_PAIRS,
+                body
+            );
+            self.touching.friction = friction;
+        }
         stages::stop(&mut self.clock, "friction", FRICTION, started);
         let started = stages::start(&self.clock);
         let (h, half) = (self.model.coeffs().h, T::of(0.5));
+        let self_friction = self.model.self_contact() && self.model.coeffs().friction > T::zero();
         let mut positions = std::mem::take(&mut self.positions);
         let mut velocities = std::mem::take(&mut self.velocities);
         let this = &*self;
@@ -442,13 +495,40 @@ impl<T: Real> CpuFabric<T> {
             if this.sleep.asleep()[block] {
                 return;
             }
-            for group in this.contacts.groups(block) {
-                let j = group[0].node as usize - block * BLOCK;
-                let dv = group
-                    .iter()
-                    .fold(V3::zeros(), |dv, e| dv - this.contacts.friction.get(e.contact as usize) * (half * e.sign));
-                (v.x[j], v.y[j], v.z[j]) = (v.x[j] + dv.x, v.y[j] + dv.y, v.z[j] + dv.z);
-            }
+            let lo = block * BLOCK;
+            let surfaces = this.model.surfaces();
+            let with_colliders = !surfaces.is_empty();
+            this.with_scratch(|scratch| {
+                if with_colliders {
+                    // From v*, before any contact's change.
+                    let (radius, impulse) =
+                        (T::of(this.model.contact_rule().radius()), this.model.coeffs().collider_impulse);
+                    for j in 0..x.x.len() {
+                        let (p, w) = (V3::new(x.x[j], x.y[j], x.z[j]), V3::new(v.x[j], v.y[j], v.z[j]));
+                        scratch.collider_friction.set(j, collider_friction(surfaces, &p, &w, radius, impulse));
+                    }
+                }
+                for group in this.contacts.groups(block) {
+                    let j = group[0].node as usize - lo;
+                    let dv = group.iter().fold(V3::zeros(), |dv, e| {
+                        dv - this.contacts.friction.get(e.contact as usize) * (half * e.sign)
+                    });
+                    (v.x[j], v.y[j], v.z[j]) = (v.x[j] + dv.x, v.y[j] + dv.y, v.z[j] + dv.z);
+                }
+                if self_friction {
+                    for j in 0..x.x.len() {
+                        if let Some(dv) = this.touching.friction_at(lo + j) {
+                            (v.x[j], v.y[j], v.z[j]) = (v.x[j] + dv.x, v.y[j] + dv.y, v.z[j] + dv.z);
+                        }
+                    }
+                }
+                if with_colliders {
+                    for j in 0..x.x.len() {
+                        let dv = scratch.collider_friction.get(j);
+                        (v.x[j], v.y[j], v.z[j]) = (v.x[j] + dv.x, v.y[j] + dv.y, v.z[j] + dv.z);
+                    }
+                }
+            });
             for (x, v) in x.components().into_iter().zip(v.components()) {
                 for (x, v) in x.iter_mut().zip(&*v) {
                     *x += *v * h;

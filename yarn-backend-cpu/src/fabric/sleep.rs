@@ -24,13 +24,45 @@ pub(crate) struct Sleep {
     quiet: Vec<u32>,
     /// The other blocks it shares a segment or a contact with.
     neighbours: Vec<Vec<u32>>,
+    /// The other blocks it has a self-contact candidate pair with, from the
+    /// last list build.
+    touching: Vec<Vec<u32>>,
 }
 
 impl Sleep {
     /// Every block of `model`'s nodes awake.
     pub(crate) fn new<T: Real>(model: &Model<T>) -> Self {
         let blocks = model.node_count().div_ceil(BLOCK);
-        Self { asleep: vec![false; blocks], quiet: vec![0; blocks], neighbours: neighbours(model, blocks) }
+        Self {
+            asleep: vec![false; blocks],
+            quiet: vec![0; blocks],
+            neighbours: neighbours(model, blocks),
+            touching: vec![Vec::new(); blocks],
+        }
+    }
+
+    /// The blocks that touch through self-contact: those of each candidate
+    /// pair of segments (by their first nodes), so yarn landing on a
+    /// sleeping block wakes it.
+    pub(crate) fn set_touching<T: Real>(&mut self, model: &Model<T>, pairs: impl Iterator<Item = [u32; 2]>) {
+        let links = model.links();
+        let ends = |a: u32| [Some(a), links[a as usize].next()].into_iter().flatten().map(|i| i as usize / BLOCK);
+        let mut touching = vec![Vec::new(); self.asleep.len()];
+        for [a, b] in pairs {
+            for p in ends(a) {
+                for q in ends(b) {
+                    if p != q {
+                        touching[p].push(q as u32);
+                        touching[q].push(p as u32);
+                    }
+                }
+            }
+        }
+        for list in &mut touching {
+            list.sort_unstable();
+            list.dedup();
+        }
+        self.touching = touching;
     }
 
     /// Per block, whether it is asleep.
@@ -89,7 +121,9 @@ impl Sleep {
             pinned[node as usize / BLOCK] = true;
         }
         let (sleep2, wake2) = (limit * limit, 4.0 * limit * limit);
-        let fast_neighbour = |block: usize| self.neighbours[block].iter().any(|&n| speed2[n as usize] > wake2);
+        let fast_neighbour = |block: usize| {
+            self.neighbours[block].iter().chain(&self.touching[block]).any(|&n| speed2[n as usize] > wake2)
+        };
         let mut changed = false;
         for block in 0..blocks {
             if self.asleep[block] {
