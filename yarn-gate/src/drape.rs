@@ -143,6 +143,11 @@ pub struct DrapeReport {
     /// How many times the self-contact candidate list was built, where
     /// the backend counts it.
     pub list_builds: Option<u64>,
+    /// Segment pairs in the candidate list at the end (within 2r plus the
+    /// skin), and of them those within 2r, pushing.
+    pub candidate_pairs: usize,
+    /// See `candidate_pairs`.
+    pub touching_pairs: usize,
 }
 
 impl DrapeReport {
@@ -162,7 +167,7 @@ impl DrapeReport {
              substeps with a pair closer than {TOO_CLOSE_RADII} r: {}\n\
              lowest centreline above each collider: {}\n\
              energy at the end: {:.6e} (self-contact {:.3e}, collider {:.3e}); max speed {:.3e}\n\
-             self-contact list builds: {}\n",
+             self-contact list builds: {}; {} candidate pairs, {} within 2r at the end\n",
             self.backend,
             self.nodes,
             self.substeps,
@@ -175,6 +180,8 @@ impl DrapeReport {
             self.collider_energy,
             self.max_speed,
             self.list_builds.map_or("not counted".into(), |b| b.to_string()),
+            self.candidate_pairs,
+            self.touching_pairs,
         )
     }
 }
@@ -330,6 +337,8 @@ impl BackendWork for Drape<'_> {
             collider_energy: energy.collider,
             max_speed: state.max_speed(),
             list_builds: backend.self_contact_builds(),
+            candidate_pairs: candidates.pairs().len(),
+            touching_pairs: watch.touching,
         };
         Ok((report, state.positions.iter().map(widen).map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect()))
     }
@@ -340,6 +349,8 @@ struct Watch {
     /// The closest approach so far, and at the last look, in model units.
     closest: Option<f64>,
     last: Option<f64>,
+    /// Pairs within 2r at the last look.
+    touching: usize,
     too_close: u64,
     /// Per collider, the lowest centreline height so far.
     lowest: Vec<f64>,
@@ -347,7 +358,7 @@ struct Watch {
 
 impl Watch {
     fn new(colliders: usize) -> Self {
-        Self { closest: None, last: None, too_close: 0, lowest: vec![f64::INFINITY; colliders] }
+        Self { closest: None, last: None, touching: 0, too_close: 0, lowest: vec![f64::INFINITY; colliders] }
     }
 
     /// Measure the state `x` of `model`'s fabric, of yarn radius `r`, with
@@ -356,10 +367,12 @@ impl Watch {
     fn observe(&mut self, model: &Model<f64>, candidates: &mut Candidates<f64>, x: &[V3<f64>], r: f64) {
         candidates.refresh(model, x);
         let mut closest = f64::INFINITY;
+        self.touching = 0;
         for &[a, b] in candidates.pairs() {
             let (a, b) = (a as usize, b as usize);
             let d = closest_gap(&x[a], &x[segment_end(model, a)], &x[b], &x[segment_end(model, b)]).0.norm();
             closest = closest.min(d);
+            self.touching += usize::from(d < 2.0 * r);
         }
         self.last = closest.is_finite().then_some(closest);
         if closest.is_finite() {

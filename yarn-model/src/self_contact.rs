@@ -168,18 +168,39 @@ fn search<T: Real>(model: &Model<T>, x: &[V3<T>], reach: f64, mut visit: impl Fn
     };
     let mut cells: Vec<([i64; 3], usize)> = segments.iter().enumerate().map(|(k, (_, p, q))| (key(p, q), k)).collect();
     cells.sort_unstable();
-    for &([cx, cy, cz], k) in &cells {
-        let (a, p0, p1) = segments[k];
-        for near in (-1..=1).flat_map(|i| (-1..=1).flat_map(move |j| (-1..=1).map(move |l| [cx + i, cy + j, cz + l]))) {
-            let first = cells.partition_point(|(c, _)| *c < near);
-            for &(_, m) in cells[first..].iter().take_while(|(c, _)| *c == near) {
+    let half_lengths: Vec<f64> = segments.iter().map(|(_, p, q)| 0.5 * (q - p).norm()).collect();
+    let mut start = 0;
+    // Cell by cell: the 27 cells around are looked up once per cell, not
+    // once per segment.
+    while start < cells.len() {
+        let [cx, cy, cz] = cells[start].0;
+        let end = start + cells[start..].partition_point(|(c, _)| *c == cells[start].0);
+        let near: Vec<&[([i64; 3], usize)]> = (-1..=1)
+            .flat_map(|i| (-1..=1).flat_map(move |j| (-1..=1).map(move |l| [cx + i, cy + j, cz + l])))
+            .map(|cell| {
+                let first = cells.partition_point(|(c, _)| *c < cell);
+                let last = first + cells[first..].partition_point(|(c, _)| *c == cell);
+                &cells[first..last]
+            })
+            .filter(|run| !run.is_empty())
+            .collect();
+        for &(_, k) in &cells[start..end] {
+            let (a, p0, p1) = segments[k];
+            let middle = (p0 + p1) * 0.5;
+            for &(_, m) in near.iter().copied().flatten() {
                 let (b, q0, q1) = segments[m];
                 if b <= a || rule.near_along_yarn(a, b) {
+                    continue;
+                }
+                // No point of two segments is nearer than their midpoints'
+                // distance less their half lengths.
+                if (middle - (q0 + q1) * 0.5).norm() - half_lengths[k] - half_lengths[m] > reach * (1.0 + 1e-9) {
                     continue;
                 }
                 visit(a as u32, b as u32, closest_gap(&p0, &p1, &q0, &q1).0.norm());
             }
         }
+        start = end;
     }
 }
 

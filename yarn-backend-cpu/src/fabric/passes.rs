@@ -45,6 +45,7 @@ use yarn_model::{Real, V3};
 
 use super::CpuFabric;
 use super::field::{BLOCK, BlockMut, Field};
+use super::touching::PAIRS_PER_BLOCK;
 
 /// Fewest blocks per rayon task (about 12 µs of work): a patch under 1,024
 /// nodes runs on one thread instead of paying to wake another, and larger
@@ -175,11 +176,19 @@ impl<T: Real> CpuFabric<T> {
             self.sleep.set_touching(&self.model, self.touching.segment_pairs());
         }
         let mut force = std::mem::take(&mut self.touching.force);
+        let mut active = std::mem::take(&mut self.touching.active);
         let this = &*self;
-        let body = |(block, mut out): (usize, BlockMut<'_, T>)| {
-            this.touching.forces_block(&this.model, &this.positions, block, &mut out);
+        let body = |(block, (mut out, active)): (usize, (BlockMut<'_, T>, &mut [bool]))| {
+            this.touching.forces_block(&this.model, &this.positions, block, (&mut out, active));
         };
-        run_pass!(self.exec, force.blocks_mut().enumerate(), force.par_blocks_mut().enumerate(), TASK_PAIRS, body);
+        run_pass!(
+            self.exec,
+            force.blocks_mut().zip(active.chunks_mut(PAIRS_PER_BLOCK)).enumerate(),
+            force.par_blocks_mut().zip(active.par_chunks_mut(PAIRS_PER_BLOCK)).enumerate(),
+            TASK_PAIRS,
+            body
+        );
+        self.touching.active = active;
         self.touching.force = force;
     }
 
@@ -280,9 +289,9 @@ impl<T: Real> CpuFabric<T> {
         }
         if self.model.self_contact() {
             for i in lo..hi {
-                let slots = self.touching.slots_of(i);
-                if !slots.is_empty() {
-                    let f = slots.iter().fold(force.get(i - lo), |f, &s| f + self.touching.force.get(s as usize));
+                let mut slots = self.touching.active_slots_of(i).peekable();
+                if slots.peek().is_some() {
+                    let f = slots.fold(force.get(i - lo), |f, s| f + self.touching.force.get(s));
                     force.set(i - lo, f);
                 }
             }

@@ -20,7 +20,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use yarn_model::self_contact::find_pairs;
 use yarn_model::step::{capped_sum, segment_end, self_contact_friction};
-use yarn_model::terms::self_contact_forces;
+use yarn_model::terms::{closest_gap, self_contact_forces};
 use yarn_model::{Model, Real, V3};
 
 use super::field::{BLOCK, BlockMut, Field};
@@ -36,6 +36,15 @@ pub(crate) struct SelfContacts<T> {
     nodes: Vec<[u32; 4]>,
     /// The positions at the last build.
     anchor: Field<T>,
+    /// Per pair: its closest distance at the last build.
+    built_gap: Vec<T>,
+    /// Per node: how far it has moved since the last build, as of the
+    /// last staleness check.
+    moved: Vec<T>,
+    /// Per pair: whether it was within reach at the last force pass; the
+    /// others have zero slots, which the friction pass and the gathers
+    /// skip.
+    pub(crate) active: Vec<bool>,
     /// [`Model::revision`] at the last build (0: never built).
     revision: u64,
     builds: u64,
@@ -51,29 +60,34 @@ pub(crate) struct SelfContacts<T> {
 impl<T: Real> SelfContacts<T> {
     /// Whether the list may miss a pair within 2r at `x`: some node has
     /// moved half the skin since the last build, or the model changed.
+    /// Records how far each node has moved, for the force pass's bound.
     /// Blocks are checked as `exec` runs them.
-    pub(crate) fn stale(&self, model: &Model<T>, x: &Field<T>, exec: super::Exec) -> bool {
+    pub(crate) fn stale(&mut self, model: &Model<T>, x: &Field<T>, exec: super::Exec) -> bool {
         if self.revision != model.revision() || self.anchor.len() != x.len() {
             return true;
         }
         let half = T::of(0.5 * model.params().self_contact_skin * model.contact_rule().radius());
-        let moved = AtomicBool::new(false);
+        let far = AtomicBool::new(false);
         let anchor = &self.anchor;
-        let body = |block: usize| {
+        let mut moved = std::mem::take(&mut self.moved);
+        moved.resize(x.len(), T::zero());
+        let body = |(block, moved): (usize, &mut [T])| {
             let ([px, py, pz], [ax, ay, az]) = (x.block(block), anchor.block(block));
             let mut within = true;
             for k in 0..px.len() {
                 let (dx, dy, dz) = (px[k] - ax[k], py[k] - ay[k], pz[k] - az[k]);
+                let squared = dx * dx + dy * dy + dz * dz;
                 // A NaN fails the comparison, so it rebuilds too.
-                within &= dx * dx + dy * dy + dz * dz <= half * half;
+                within &= squared <= half * half;
+                moved[k] = squared.sqrt();
             }
             if !within {
-                moved.store(true, Ordering::Relaxed);
+                far.store(true, Ordering::Relaxed);
             }
         };
-        let blocks = x.len().div_ceil(BLOCK);
-        run_pass!(exec, (0..blocks), (0..blocks).into_par_iter(), 8, body);
-        moved.into_inner()
+        run_pass!(exec, moved.chunks_mut(BLOCK).enumerate(), moved.par_chunks_mut(BLOCK).enumerate(), 8, body);
+        self.moved = moved;
+        far.into_inner()
     }
 
     /// Rebuild the list at `x`, with its incidence and buffers.
@@ -102,6 +116,16 @@ impl<T: Real> SelfContacts<T> {
             fill[i as usize] += 1;
         }
         self.start = start;
+        self.built_gap = self
+            .nodes
+            .iter()
+            .map(|n| {
+                let p = n.map(|i| x.get(i as usize));
+                closest_gap(&p[0], &p[1], &p[2], &p[3]).0.norm()
+            })
+            .collect();
+        self.moved = vec![T::zero(); x.len()];
+        self.active = vec![false; self.nodes.len()];
         self.anchor.clone_from(x);
         self.revision = model.revision();
         self.builds += 1;
@@ -120,21 +144,42 @@ impl<T: Real> SelfContacts<T> {
         self.builds
     }
 
-    /// Node `i`'s slots, in pair order.
-    pub(crate) fn slots_of(&self, i: usize) -> &[u32] {
-        self.start.get(i + 1).map_or(&[], |&end| &self.slots[self.start[i] as usize..end as usize])
+    /// Node `i`'s slots of pairs that push, in pair order.
+    pub(crate) fn active_slots_of(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
+        let slots = self.start.get(i + 1).map_or(&[][..], |&end| &self.slots[self.start[i] as usize..end as usize]);
+        slots.iter().map(|&s| s as usize).filter(|&s| self.active[s / 4])
     }
 
     /// The force of pairs block `block` on their nodes, into `out`
-    /// (slots 4 × pair + k): [`self_contact_forces`], zero out of reach.
-    pub(crate) fn forces_block(&self, model: &Model<T>, x: &Field<T>, block: usize, out: &mut BlockMut<'_, T>) {
+    /// (slots 4 × pair + k), and whether each pushes, into `active`:
+    /// [`self_contact_forces`], zero out of reach. A pair whose distance at
+    /// the build, less how far its nodes have moved since, is still out of
+    /// reach cannot touch, and is not measured.
+    pub(crate) fn forces_block(
+        &self,
+        model: &Model<T>,
+        x: &Field<T>,
+        block: usize,
+        (out, active): (&mut BlockMut<'_, T>, &mut [bool]),
+    ) {
         let reach = T::of(2.0 * model.contact_rule().radius());
+        // A thousandth of a radius for the rounding of the bound's terms.
+        let clear = reach * T::of(1.0005);
         let k_sc = model.coeffs().self_contact;
         let first = block * PAIRS_PER_BLOCK;
-        for j in 0..out.x.len() / 4 {
-            let p = self.nodes[first + j].map(|i| x.get(i as usize));
-            let f = self_contact_forces(&p[0], &p[1], &p[2], &p[3], reach, k_sc).unwrap_or([V3::zeros(); 4]);
-            for (k, f) in f.into_iter().enumerate() {
+        let moved = |i: u32| self.moved[i as usize];
+        for (j, active) in active.iter_mut().enumerate() {
+            let nodes = self.nodes[first + j];
+            let nearest =
+                self.built_gap[first + j] - moved(nodes[0]).max(moved(nodes[1])) - moved(nodes[2]).max(moved(nodes[3]));
+            let f = if nearest >= clear {
+                None
+            } else {
+                let p = nodes.map(|i| x.get(i as usize));
+                self_contact_forces(&p[0], &p[1], &p[2], &p[3], reach, k_sc)
+            };
+            *active = f.is_some();
+            for (k, f) in f.unwrap_or([V3::zeros(); 4]).into_iter().enumerate() {
                 (out.x[4 * j + k], out.y[4 * j + k], out.z[4 * j + k]) = (f.x, f.y, f.z);
             }
         }
@@ -153,6 +198,12 @@ impl<T: Real> SelfContacts<T> {
         let c = model.coeffs();
         let first = block * PAIRS_PER_BLOCK;
         for j in 0..out.x.len() / 4 {
+            if !self.active[first + j] {
+                for k in 4 * j..4 * j + 4 {
+                    (out.x[k], out.y[k], out.z[k]) = (T::zero(), T::zero(), T::zero());
+                }
+                continue;
+            }
             let nodes = self.nodes[first + j].map(|i| i as usize);
             let (p, w) = (nodes.map(|i| x.get(i)), nodes.map(|i| v.get(i)));
             let dv = self_contact_friction([&p[0], &p[1], &p[2], &p[3]], [&w[0], &w[1], &w[2], &w[3]], reach, c)
@@ -163,10 +214,11 @@ impl<T: Real> SelfContacts<T> {
         }
     }
 
-    /// The friction change at node `i`: its slots' changes in pair order,
-    /// [`capped_sum`]med; `None` where it has no slot.
+    /// The friction change at node `i`: its pushing pairs' changes in pair
+    /// order, [`capped_sum`]med; `None` where no pair pushes it.
     pub(crate) fn friction_at(&self, i: usize) -> Option<V3<T>> {
-        let slots = self.slots_of(i);
-        (!slots.is_empty()).then(|| capped_sum(slots.iter().map(|&s| self.friction.get(s as usize))))
+        let mut slots = self.active_slots_of(i).peekable();
+        slots.peek()?;
+        Some(capped_sum(slots.map(|s| self.friction.get(s))))
     }
 }
