@@ -719,7 +719,7 @@ pub mod strategy {
                 let fraction = p.substep / p.stability_bound();
                 let p =
                     Params { self_contact_stiffness: k_sc, collider_stiffness: k_col, self_contact_skin: skin, ..p };
-                let params = Params { substep: fraction * p.stability_bound(), ..p };
+                let params = Params { substep: fraction * p.stability_bound_with_colliders(), ..p };
                 // A fifth of the scene's jiggle: deeper overlaps start faster
                 // than self-contact's movement limit allows.
                 let state = State {

@@ -290,4 +290,30 @@ mod tests {
         assert_eq!(slow + surface.friction_change(&x, &slow, r, impulse).unwrap(), V3::new(0.0, -1.0, 0.0));
         assert_eq!(surface.friction_change(&V3::new(0.0, 1.0, 0.0), &v, r, impulse), None, "not touching");
     }
+
+    /// A collider stiffer than the yarn tightens the stable substep only
+    /// once a collider is set: the model refuses the collider, or later
+    /// parameters, whose substep it makes unstable, and keeps what it had.
+    #[test]
+    fn a_stiff_collider_is_held_to_the_stability_bound_only_when_set() {
+        let fabric = yarn_topology::Fabric::from_chart(
+            &yarn_topology::Chart::stockinette(2, 2).unwrap(),
+            &yarn_topology::Geometry::default(),
+        )
+        .unwrap();
+        let base = crate::Params::default();
+        let stiff = crate::Params { collider_stiffness: 100.0 * base.stretch_stiffness, ..base };
+        assert_eq!(stiff.stability_bound(), base.stability_bound(), "no collider, no cost");
+        let mut model = crate::Model::<f64>::new(&fabric, &stiff).unwrap();
+        let floor = [Collider::Plane(Plane::floor(0.0))];
+        assert!(matches!(
+            model.set_colliders(&floor),
+            Err(crate::BackendError::Params(crate::ParamError::SubstepUnstable { .. }))
+        ));
+        assert!(model.colliders().is_empty());
+        model.set_params(&base).unwrap();
+        model.set_colliders(&floor).unwrap();
+        assert!(model.set_params(&stiff).is_err());
+        assert_eq!(model.params(), &base);
+    }
 }

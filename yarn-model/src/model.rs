@@ -389,6 +389,9 @@ impl<T: Real> Model<T> {
     /// [`BackendError::Params`] if they do not validate; the model is unchanged.
     pub fn set_params(&mut self, params: &Params) -> Result<(), BackendError> {
         params.validate()?;
+        if !self.colliders.is_empty() {
+            params.validate_with_colliders()?;
+        }
         self.params = *params;
         self.coeffs = Coefficients::new(params);
         self.revision = next_revision();
@@ -409,9 +412,14 @@ impl<T: Real> Model<T> {
     /// Replace the colliders ([`crate::collider`]); none after load.
     ///
     /// # Errors
-    /// [`BackendError::Collider`] naming the first bad collider; the model
+    /// [`BackendError::Collider`] naming the first bad collider, or
+    /// [`BackendError::Params`] when the substep is too long for the
+    /// collider stiffness ([`Params::validate_with_colliders`]); the model
     /// is unchanged.
     pub fn set_colliders(&mut self, colliders: &[Collider]) -> Result<(), BackendError> {
+        if !colliders.is_empty() {
+            self.params.validate_with_colliders()?;
+        }
         self.surfaces = Surface::all(colliders)?;
         self.colliders = colliders.to_vec();
         Ok(())

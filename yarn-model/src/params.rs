@@ -70,8 +70,8 @@ pub struct Params {
     /// Collider stiffness k_col: a node whose centreline comes closer than
     /// the yarn radius r to a collider's surface is pushed out with the
     /// energy ½ k_col δ² of its depth δ ([`crate::Collider`]). Stiffer
-    /// holds the yarn closer to r but shrinks the stable substep once it
-    /// passes k_s (default: 800).
+    /// holds the yarn closer to r but, once colliders are set, shrinks the
+    /// stable substep when it passes k_s (default: 800).
     pub collider_stiffness: f64,
 }
 
@@ -184,16 +184,42 @@ fn limit_note(bound: f64, analytic: f64) -> String {
 impl Params {
     /// ω_max = sqrt(k_max / m) for the stiffest element, in 1/s (SPEC §1).
     ///
-    /// k_max is the largest of the stretch, contact, self-contact and
-    /// collider stiffnesses (a self-contact's push, shared by the two nodes
-    /// of each segment, loads no node with more than k_sc). Bending
+    /// k_max is the largest of the stretch, contact and self-contact
+    /// stiffnesses (a self-contact's push, shared by the two nodes of each
+    /// segment, loads no node with more than k_sc); the colliders' counts
+    /// only where some are set ([`Params::validate_with_colliders`]). Bending
     /// acts as a stiffness near k_b/ℓ², which depends on segment lengths and
     /// is far below k_s at the default gauge, so it is left out.
     pub fn omega_max(&self) -> f64 {
-        let k_max = [self.contact_stiffness, self.self_contact_stiffness, self.collider_stiffness]
-            .into_iter()
-            .fold(self.stretch_stiffness, f64::max);
+        let k_max =
+            [self.contact_stiffness, self.self_contact_stiffness].into_iter().fold(self.stretch_stiffness, f64::max);
         (k_max / self.mass).sqrt()
+    }
+
+    /// [`Params::stability_bound`] with the collider stiffness among the
+    /// elements: the bound that holds once a collider is set. A scene
+    /// without colliders is not held to it.
+    pub fn stability_bound_with_colliders(&self) -> f64 {
+        2.0 / (self
+            .collider_stiffness
+            .max(self.stretch_stiffness.max(self.contact_stiffness).max(self.self_contact_stiffness))
+            / self.mass)
+            .sqrt()
+    }
+
+    /// Check that the substep is stable against the colliders' stiffness
+    /// too, as [`Params::validate`] does against the yarn's: below
+    /// [`Params::substep_limit`] of [`Params::stability_bound_with_colliders`].
+    ///
+    /// # Errors
+    /// [`ParamError::SubstepUnstable`] naming that bound.
+    pub fn validate_with_colliders(&self) -> Result<(), ParamError> {
+        let analytic = self.stability_bound_with_colliders();
+        let bound = self.substep_limit * analytic;
+        if self.substep >= bound {
+            return Err(ParamError::SubstepUnstable { substep: self.substep, bound, analytic });
+        }
+        Ok(())
     }
 
     /// The explicit stability bound h < 2/ω_max, in seconds (SPEC §1).
