@@ -31,7 +31,45 @@ struct Params {
     // how many the reseat pass holds (`reseat.wgsl`).
     reseat_step: f32,
     reseats: u32,
+    // Self-contact (`touch.wgsl`): k_sc, h k_sc / m, and the reach 2r.
+    self_contact: f32,
+    self_impulse: f32,
+    reach: f32,
+    // The yarn radius r, k_col and h k_col / m, for the colliders.
+    radius: f32,
+    collider: f32,
+    collider_impulse: f32,
+    // The candidate grid (`grid_insert.wgsl`, `grid_find.wgsl`): the cell's
+    // edge, the reach 2r plus the skin, half the skin, buckets − 1, slots
+    // per segment's list.
+    cell: f32,
+    search_reach: f32,
+    half_skin: f32,
+    mask: u32,
+    slots: u32,
+    // How many of `surfaces` are set.
+    colliders: u32,
+    // The workgroups of a full rebuild, for `plan.wgsl`'s indirect dispatch.
+    rebuild_x: u32,
+    rebuild_y: u32,
+    // The longest segment the grid holds; longer ones are long (`grid.wgsl`).
+    short: f32,
+    // Unused: `surfaces` starts on 16 bytes.
+    pad: u32,
+    surfaces: array<Surface, MAX_COLLIDERS>,
 }
+
+// Mirrors `GpuSurface`: a plane collider (`yarn_model::collider::Surface`),
+// its unit normal n, n · (a point on it), the depth of solid behind it and
+// its friction coefficient.
+struct Surface {
+    normal: vec3<f32>,
+    offset: f32,
+    thickness: f32,
+    friction: f32,
+}
+
+const MAX_COLLIDERS: u32 = 8u;
 
 // Mirrors `GpuContact`.
 struct Contact {
@@ -69,6 +107,13 @@ const FUSED_FMA: u32 = 2u;
 // fixed-point force or sum overflowed; the state diverged.
 const OVERFLOWED: u32 = 1u;
 const DIVERGED: u32 = 2u;
+// More self-contact candidates near a segment than its list holds
+// (`status[1]`: how many); yarn stretched past what the grid's search
+// covers (`grid.wgsl`).
+const CROWDED: u32 = 4u;
+const STRETCHED: u32 = 8u;
+// `Params::flags` bit: self-contact is on.
+const SELF_CONTACT: u32 = 4u;
 
 // The global thread index of a dispatch that may be two-dimensional (a
 // fabric with more workgroups than one dimension allows).
@@ -95,6 +140,15 @@ fn mul(a: f32, b: f32) -> f32 {
 
 fn mul3(a: vec3<f32>, b: f32) -> vec3<f32> {
     return a * b * p.one;
+}
+
+// `a` as computed: the select's condition never holds (no parameter sets
+// every flag) but the compiler cannot know it, so it cannot merge the
+// arithmetic on either side. A product added to a sum needs it: `mul3`'s
+// `p.one` alone did not stop lavapipe from fusing a sum of two of them, nor
+// the H200 from fusing a collider's push, or a pair's share, into a sum.
+fn kept3(a: vec3<f32>) -> vec3<f32> {
+    return select(a, vec3<f32>(0.0), p.flags == 0xffffffffu);
 }
 
 fn sqrt_rounded(x: f32) -> f32 {
@@ -185,4 +239,48 @@ fn friction_change(d: vec3<f32>, w: vec3<f32>, rest: f32) -> vec3<f32> {
     let dv_normal = p.friction_impulse * (rest - length);
     let retention = max(1.0 - div_rounded(p.friction * dv_normal, select(1.0, slip, keep)), 0.0);
     return select(vec3<f32>(0.0), mul3(wt, retention - 1.0), keep);
+}
+
+// x · y, rounded as nalgebra's `dot` for 3-vectors: (x0 y0 + x1 y1) + x2 y2.
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    return mul(a.x, b.x) + mul(a.y, b.y) + mul(a.z, b.z);
+}
+
+// `Surface::depth`: how deep a node at `at` presses into collider k (r less
+// its centreline's height), or 0 where it does not or is past the far side.
+fn collider_depth(k: u32, at: vec3<f32>) -> f32 {
+    let s = p.surfaces[k];
+    let height = dot3(s.normal, at) - s.offset;
+    let depth = p.radius - height;
+    return select(0.0, depth, depth > 0.0 && height > -s.thickness);
+}
+
+// `f` plus every collider's push on a node at `at` (`Surface::force`, in
+// collider order), as the CPU's block pass adds them.
+fn with_colliders(f: vec3<f32>, at: vec3<f32>) -> vec3<f32> {
+    var sum = f;
+    for (var k = 0u; k < p.colliders; k++) {
+        let depth = collider_depth(k, at);
+        if depth > 0.0 {
+            sum += kept3(mul3(p.surfaces[k].normal, mul(p.collider, depth)));
+        }
+    }
+    return sum;
+}
+
+// `step::collider_friction`: the colliders' friction change to the velocity
+// `w` (v*) of a node at `at`, summed in collider order.
+fn collider_friction(at: vec3<f32>, w: vec3<f32>) -> vec3<f32> {
+    var dv = vec3<f32>(0.0);
+    for (var k = 0u; k < p.colliders; k++) {
+        let s = p.surfaces[k];
+        let depth = collider_depth(k, at);
+        let slip = w - kept3(mul3(s.normal, dot3(s.normal, w)));
+        let speed = norm(slip);
+        if depth > 0.0 && speed > 0.0 {
+            let retention = max(1.0 - div_rounded(mul(mul(s.friction, p.collider_impulse), depth), speed), 0.0);
+            dv += kept3(mul3(slip, retention - 1.0));
+        }
+    }
+    return dv;
 }

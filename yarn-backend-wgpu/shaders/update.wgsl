@@ -2,7 +2,9 @@
 // damped velocity v* in place and, without friction, the move into `out`
 // (entry point `step`); or the force alone into `out` (entry point
 // `forces`, for `Backend::compute_forces`). Each mode's file supplies
-// `total_force(i)` and the bindings `p`, `x`, `v` and `out`.
+// `total_force(i)`, `watch_speed` and `watch_move` (`touch.wgsl`'s, or
+// nothing), and the bindings `p`, `x`, `v` and `out`; the colliders' push
+// comes last, as on the CPU.
 
 @compute @workgroup_size(WORKGROUP)
 fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
@@ -11,10 +13,13 @@ fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     if i >= p.nodes {
         return;
     }
-    let velocity = damped_velocity(v[i].xyz, total_force(i));
+    let velocity = damped_velocity(v[i].xyz, with_colliders(total_force(i), x[i].xyz));
     v[i] = vec4<f32>(velocity, 0.0);
+    watch_speed(velocity);
     if (p.flags & FRICTION_ON) == 0u {
-        out[i] = vec4<f32>(x[i].xyz + mul3(velocity, p.h), 0.0);
+        let at = x[i].xyz + mul3(velocity, p.h);
+        out[i] = vec4<f32>(at, 0.0);
+        watch_move(i, at);
     }
 }
 
@@ -25,5 +30,5 @@ fn forces(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id)
     if i >= p.nodes {
         return;
     }
-    out[i] = vec4<f32>(total_force(i), 0.0);
+    out[i] = vec4<f32>(with_colliders(total_force(i), x[i].xyz), 0.0);
 }

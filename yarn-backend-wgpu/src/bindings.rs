@@ -7,6 +7,8 @@
 
 use bytemuck::Pod;
 use wgpu::util::DeviceExt;
+use yarn_model::self_contact::Tethers;
+use yarn_model::self_contact::grid::EMPTY;
 use yarn_model::{Model, V3};
 
 use crate::Mode;
@@ -64,6 +66,15 @@ pub(crate) struct Buffers {
     /// The positions and velocities a batch started from, put back if it
     /// overflows or diverges.
     pub(crate) snapshot: [wgpu::Buffer; 2],
+    /// Self-contact (a 16-byte stand-in each while it is off): the
+    /// candidate lists with their per-node records and anchors
+    /// (`lists.wgsl`), the rule and tethers (`grid_find.wgsl`), the grid
+    /// (`grid.wgsl`), and the indirect workgroup counts of a rebuild
+    /// (`plan.wgsl`).
+    pub(crate) lists: wgpu::Buffer,
+    pub(crate) rule: wgpu::Buffer,
+    pub(crate) grid: wgpu::Buffer,
+    pub(crate) rebuild: wgpu::Buffer,
 }
 
 impl Buffers {
@@ -75,6 +86,7 @@ impl Buffers {
         model: &Model<f32>,
         positions: &[V3<f32>],
         velocities: &[V3<f32>],
+        slots: u32,
     ) -> Self {
         let (start, incident, _) = incidence(model);
         let (x, v) = (vec4s(positions), vec4s(velocities));
@@ -112,8 +124,69 @@ impl Buffers {
                     mapped_at_creation: false,
                 })
             }),
+            lists: storage(device, "lists", &lists(model, slots)),
+            rule: storage(device, "rule", &rule(model)),
+            grid: storage(device, "grid", &grid(model)),
+            rebuild: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("rebuild"),
+                contents: bytemuck::cast_slice(&[0u32; 4]),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+            }),
         }
     }
+}
+
+/// The candidate lists of `model` (`lists.wgsl`) with `slots` slots per
+/// segment, empty and marked stale so the first substep builds them: a
+/// 16-byte stand-in with self-contact off.
+pub(crate) fn lists(model: &Model<f32>, slots: u32) -> Vec<u32> {
+    if !model.self_contact() {
+        return vec![0; 4];
+    }
+    let n = model.node_count();
+    let mut lists = vec![0u32; 4 + 8 * n + slots as usize * n];
+    lists[0] = 1;
+    for (i, link) in model.links().iter().enumerate() {
+        let [prev, next] = link.raw();
+        lists[4 + 4 * i] = prev;
+        lists[4 + 4 * i + 1] = next;
+    }
+    lists
+}
+
+/// Bytes of [`lists`] for `nodes` nodes and `slots` slots.
+pub(crate) fn lists_bytes(nodes: usize, slots: u32) -> u64 {
+    4 * (4 + (8 + u64::from(slots)) * nodes as u64)
+}
+
+/// The rule of `model`'s self-contact and its tethered pairs
+/// (`grid_find.wgsl`): a 16-byte stand-in with self-contact off.
+pub(crate) fn rule(model: &Model<f32>) -> Vec<u32> {
+    const CLOSED: u32 = 0x8000_0000;
+    if !model.self_contact() {
+        return vec![0; 4];
+    }
+    let (rule, tethers) = (model.contact_rule(), Tethers::of(model));
+    let mut out = Vec::with_capacity(4 * (model.node_count() + 1) + tethers.partners().len());
+    for (i, &ahead) in rule.ahead().iter().enumerate() {
+        let yarn = rule.yarn_of(i);
+        out.extend([yarn.start, yarn.len() as u32 | if yarn.closed { CLOSED } else { 0 }, ahead, tethers.start()[i]]);
+    }
+    out.extend([0, 0, 0, tethers.start()[model.node_count()]]);
+    out.extend_from_slice(tethers.partners());
+    out
+}
+
+/// The candidate grid of `model` (`grid.wgsl`): no long segment,
+/// generation 0, every bucket and `next` empty; a 16-byte stand-in with
+/// self-contact off.
+pub(crate) fn grid(model: &Model<f32>) -> Vec<u32> {
+    if !model.self_contact() {
+        return vec![0; 4];
+    }
+    let mut grid = vec![EMPTY; crate::fabric::grid_len(model)];
+    grid[..4].fill(0);
+    grid
 }
 
 /// The bind groups of every pass for every parity: the forces pass
@@ -129,6 +202,10 @@ pub(crate) struct Groups {
     pub(crate) fused: ByParity,
     pub(crate) check: ByParity,
     pub(crate) reseat: wgpu::BindGroup,
+    /// Self-contact's list passes.
+    pub(crate) plan: wgpu::BindGroup,
+    pub(crate) grid_insert: ByParity,
+    pub(crate) grid_find: ByParity,
 }
 
 impl Groups {
@@ -153,6 +230,7 @@ impl Groups {
                     &v[1 - at.v],
                     &buffers.start,
                     &buffers.incident,
+                    &buffers.lists,
                 ];
                 bind(gpu, &pipelines.friction.layout, "friction", &bound)
             }),
@@ -160,7 +238,22 @@ impl Groups {
                 bind(gpu, &pipelines.pins.layout, "pins", &[&buffers.params, &x[at.x], &v[at.v], &buffers.pins])
             }),
             check: ByParity::new(|at| {
-                bind(gpu, &pipelines.check.layout, "check", &[&buffers.params, &x[at.x], &v[at.v], &buffers.status])
+                let bound = [&buffers.params, &x[at.x], &v[at.v], &buffers.status, &buffers.lists];
+                bind(gpu, &pipelines.check.layout, "check", &bound)
+            }),
+            plan: bind(
+                gpu,
+                &pipelines.plan.layout,
+                "plan",
+                &[&buffers.params, &buffers.lists, &buffers.grid, &buffers.rebuild],
+            ),
+            grid_insert: ByParity::new(|at| {
+                let bound = [&buffers.params, &x[at.x], &buffers.lists, &buffers.grid];
+                bind(gpu, &pipelines.grid_insert.layout, "grid insert", &bound)
+            }),
+            grid_find: ByParity::new(|at| {
+                let bound = [&buffers.params, &x[at.x], &buffers.lists, &buffers.grid, &buffers.rule, &buffers.status];
+                bind(gpu, &pipelines.grid_find.layout, "grid find", &bound)
             }),
             reseat: reseat_group(gpu, buffers),
             fused: ByParity::new(|at| {
@@ -210,7 +303,7 @@ pub(crate) fn forces_kernel<'a>(mode: Mode, pipelines: &'a Pipelines, buffers: &
     match mode {
         Mode::Gather => ForcesKernel {
             layout: &pipelines.gather.layout,
-            bindings: [Some(&buffers.chain), Some(&buffers.start), Some(&buffers.incident), None],
+            bindings: [Some(&buffers.chain), Some(&buffers.start), Some(&buffers.incident), Some(&buffers.lists)],
             scatter: None,
             step: &pipelines.gather.entries[0],
             forces: &pipelines.gather.entries[1],

@@ -11,11 +11,17 @@ use std::sync::Arc;
 
 use yarn_model::{BackendError, Model, Rollback, State, V3, advance_with_rollback};
 
+use yarn_model::self_contact::grid::{GridShape, MAX_LONG};
+
 use crate::bindings::{
-    Buffers, Groups, Parity, chain, forces_kernel, gpu_contacts, incidence, reseat_group, storage, vec4s,
+    Buffers, Groups, Parity, chain, forces_kernel, gpu_contacts, grid, incidence, lists, lists_bytes, reseat_group,
+    rule, storage, vec4s,
 };
 use crate::gpu::{Gpu, read_mapped};
-use crate::layout::{DIVERGED, FRICTION_ON, FUSED_FMA, GpuChain, GpuParams, GpuPin, OVERFLOWED};
+use crate::layout::{
+    CROWDED, DIVERGED, FRICTION_ON, FUSED_FMA, GpuChain, GpuParams, GpuPin, GpuSurface, MAX_COLLIDERS, OVERFLOWED,
+    SELF_CONTACT, STRETCHED,
+};
 use crate::record::Dispatch;
 use crate::timing::Timestamps;
 use crate::{Checkpoint, FIXED_POINT_SCALE, Mode, WORKGROUP};
@@ -40,7 +46,18 @@ pub(crate) struct GpuFabric {
     saved: (Parity, u64),
     /// Set by the stage counters while a timed batch runs.
     pub(crate) timestamps: Option<Timestamps>,
+    /// Slots in each segment's self-contact candidate list.
+    pub(crate) slots: u32,
+    /// How many candidates the most crowded segment had, when a batch
+    /// found more than the slots hold: the lists grow and the batch runs
+    /// again.
+    crowded: Option<u32>,
 }
+
+/// Slots per segment's candidate list at load: at rest a segment of the
+/// default fabric has at most 7 candidates, so this leaves room for a fold
+/// or a crush; more grow the lists ([`GpuFabric::advance`]).
+pub(crate) const FIRST_SLOTS: u32 = 16;
 
 /// Check that `model` fits the device: its buffers one binding each, its
 /// passes one dispatch each.
@@ -52,7 +69,31 @@ pub(crate) fn check_fits(gpu: &Gpu, model: &Model<f32>) -> Result<(), BackendErr
     fits_binding(gpu, "the node buffer (bytes)", nodes as u64 * 16)?;
     fits_binding(gpu, "the per-node chain records (bytes)", (nodes * size_of::<GpuChain>()) as u64)?;
     fits_binding(gpu, "the per-node contact records (bytes)", contacts as u64 * 32)?;
+    if model.self_contact() {
+        fits_binding(gpu, "the self-contact candidate lists (bytes)", lists_bytes(nodes, FIRST_SLOTS))?;
+        fits_binding(gpu, "the self-contact grid (bytes)", 4 * grid_len(model) as u64)?;
+    }
     fits_dispatch(gpu, nodes.max(contacts))
+}
+
+/// Refuse self-contact in fixed-point mode, whose scatter has no pair term.
+///
+/// # Errors
+/// [`BackendError::Unsupported`] naming the mode and the way out.
+pub(crate) fn refuse_self_contact(mode: Mode, params: &yarn_model::Params) -> Result<(), BackendError> {
+    if mode == Mode::FixedPointAtomic && params.self_contact_stiffness > 0.0 {
+        return Err(BackendError::Unsupported {
+            backend: "wgpu-fixed",
+            feature: "self-contact",
+            remedy: "use `Mode::Gather` (the default), or set `self_contact_stiffness` to 0",
+        });
+    }
+    Ok(())
+}
+
+/// Entries of the self-contact grid of `model` (`grid.wgsl`).
+pub(crate) fn grid_len(model: &Model<f32>) -> usize {
+    4 + 2 * GridShape::new(model).buckets() + model.node_count() + MAX_LONG as usize
 }
 
 /// Check that a buffer of `bytes` fits one binding.
@@ -102,7 +143,7 @@ pub(crate) fn vectors(bytes: &[u8]) -> Vec<V3<f32>> {
 impl GpuFabric {
     /// Upload `model` (checked by [`check_fits`]) at `state`.
     pub(crate) fn new(gpu: Arc<Gpu>, mode: Mode, fuse_below: usize, model: Model<f32>, state: State<f32>) -> Self {
-        let buffers = Buffers::new(&gpu.device, &model, &state.positions, &state.velocities);
+        let buffers = Buffers::new(&gpu.device, &model, &state.positions, &state.velocities, FIRST_SLOTS);
         let groups = Groups::new(&gpu, mode, &buffers);
         let checkpoint = Checkpoint { substeps: 0, state };
         let mut fabric = Self {
@@ -117,6 +158,8 @@ impl GpuFabric {
             checkpoint,
             saved: (Parity::default(), 0),
             timestamps: None,
+            slots: FIRST_SLOTS,
+            crowded: None,
         };
         fabric.upload_pins();
         fabric
@@ -127,13 +170,30 @@ impl GpuFabric {
         &self.buffers.x[self.parity.x]
     }
 
-    fn gpu_params(&self) -> GpuParams {
+    pub(crate) fn gpu_params(&self) -> GpuParams {
         let c = self.model.coeffs();
+        let model = &self.model;
+        let surfaces = model.surfaces();
+        let shape = GridShape::new(model);
+        let radius = model.contact_rule().radius();
+        let (rebuild_x, rebuild_y) = self.gpu.groups(model.node_count() as u32).unwrap_or((1, 1));
+        let mut gpu_surfaces = [GpuSurface::default(); MAX_COLLIDERS];
+        for (gpu, s) in gpu_surfaces.iter_mut().zip(surfaces) {
+            *gpu = GpuSurface {
+                normal: s.normal.into(),
+                offset: s.offset,
+                thickness: s.thickness,
+                friction: s.friction,
+                _pad: [0.0; 2],
+            };
+        }
         GpuParams {
             nodes: self.model.node_count() as u32,
             contacts: self.model.contacts().len() as u32,
             pins: self.buffers.pin_count,
-            flags: if c.friction > 0.0 { FRICTION_ON } else { 0 } | if self.gpu.fused_fma { FUSED_FMA } else { 0 },
+            flags: if self.friction_on() { FRICTION_ON } else { 0 }
+                | if self.gpu.fused_fma { FUSED_FMA } else { 0 }
+                | if model.self_contact() { SELF_CONTACT } else { 0 },
             stretch: c.stretch,
             bend: c.bend,
             contact: c.contact,
@@ -150,7 +210,55 @@ impl GpuFabric {
             one: 1.0,
             reseat_step: self.model.reseat_step(),
             reseats: self.buffers.reseat_count,
+            self_contact: c.self_contact,
+            self_impulse: c.self_contact_impulse,
+            reach: (2.0 * radius) as f32,
+            radius: radius as f32,
+            collider: c.collider,
+            collider_impulse: c.collider_impulse,
+            cell: shape.cell,
+            search_reach: shape.reach,
+            half_skin: (0.5 * model.params().self_contact_skin * radius) as f32,
+            mask: shape.mask,
+            slots: self.slots,
+            colliders: surfaces.len() as u32,
+            rebuild_x,
+            rebuild_y,
+            short: shape.short,
+            _pad: 0,
+            surfaces: gpu_surfaces,
         }
+    }
+
+    /// How many times the GPU has built the self-contact lists since
+    /// self-contact was turned on (`plan.wgsl`'s generation), read back;
+    /// `None` with it off, or in the browser, where nothing may wait.
+    pub(crate) fn self_contact_builds(&self) -> Option<u64> {
+        if !self.model.self_contact() || cfg!(target_arch = "wasm32") {
+            return None;
+        }
+        let bytes = self.read(&self.buffers.grid, 8).ok()?;
+        Some(u64::from(bytemuck::pod_read_unaligned::<u32>(&bytes[4..8])))
+    }
+
+    /// Have the next substep rebuild the self-contact lists: the positions,
+    /// parameters, pins or tethers changed other than by a substep.
+    pub(crate) fn mark_stale(&self) {
+        if self.model.self_contact() {
+            self.gpu.queue.write_buffer(&self.buffers.lists, 0, bytemuck::bytes_of(&1u32));
+        }
+    }
+
+    /// Remake the self-contact buffers for the model as it is now, with
+    /// self-contact just turned on or off, and rebind; the lists start
+    /// stale.
+    fn remake_touch(&mut self) {
+        let device = &self.gpu.device;
+        self.buffers.lists = storage(device, "lists", &lists(&self.model, self.slots));
+        self.buffers.rule = storage(device, "rule", &rule(&self.model));
+        self.buffers.grid = storage(device, "grid", &grid(&self.model));
+        self.groups = Groups::new(&self.gpu, self.mode, &self.buffers);
+        self.write_params();
     }
 
     pub(crate) fn write_params(&self) {
@@ -190,16 +298,42 @@ impl GpuFabric {
     }
 
     pub(crate) fn set_params(&mut self, params: &yarn_model::Params) -> Result<(), BackendError> {
-        BackendError::unless_self_contact(params, "wgpu")?;
-        self.model.set_params(params)?;
-        self.write_params();
+        refuse_self_contact(self.mode, params)?;
+        let touching = self.model.self_contact();
+        let mut model = self.model.clone();
+        model.set_params(params)?;
+        if model.self_contact() && !touching {
+            check_fits(&self.gpu, &model)?;
+        }
+        self.model = model;
+        if self.model.self_contact() == touching {
+            self.write_params();
+            self.mark_stale();
+        } else {
+            self.slots = FIRST_SLOTS;
+            self.remake_touch();
+        }
         self.gpu.queue.write_buffer(&self.buffers.chain, 0, bytemuck::cast_slice(&chain(&self.model)));
+        Ok(())
+    }
+
+    pub(crate) fn set_colliders(&mut self, colliders: &[yarn_model::Collider]) -> Result<(), BackendError> {
+        if colliders.len() > MAX_COLLIDERS {
+            return Err(BackendError::Unsupported {
+                backend: "wgpu",
+                feature: "more than 8 colliders",
+                remedy: "set at most 8",
+            });
+        }
+        self.model.set_colliders(colliders)?;
+        self.write_params();
         Ok(())
     }
 
     pub(crate) fn set_pins(&mut self, pins: &[yarn_topology::Pin]) -> Result<(), BackendError> {
         self.model.set_pins(pins)?;
         self.upload_pins();
+        self.mark_stale();
         Ok(())
     }
 
@@ -212,6 +346,13 @@ impl GpuFabric {
         }
         self.model.set_contacts_alive(alive, &positions)?;
         self.upload_contacts();
+        if self.model.self_contact() {
+            // The tethers changed: a dead contact's crossing passes to
+            // self-contact.
+            self.buffers.rule = storage(&self.gpu.device, "rule", &rule(&self.model));
+            self.groups = Groups::new(&self.gpu, self.mode, &self.buffers);
+            self.mark_stale();
+        }
         Ok(())
     }
 
@@ -221,6 +362,7 @@ impl GpuFabric {
         queue.write_buffer(&self.buffers.x[self.parity.x], 0, bytemuck::cast_slice(&vec4s(&state.positions)));
         queue.write_buffer(&self.buffers.v[self.parity.v], 0, bytemuck::cast_slice(&vec4s(&state.velocities)));
         self.checkpoint = Checkpoint { substeps: self.substeps, state: state.clone() };
+        self.mark_stale();
         Ok(())
     }
 
@@ -235,19 +377,28 @@ impl GpuFabric {
     }
 
     pub(crate) fn compute_forces(&mut self, forces: &mut Vec<V3<f32>>) -> Result<(), BackendError> {
+        self.grow_when_crowded(|fabric| fabric.forces_once(forces))
+    }
+
+    /// [`Self::compute_forces`] with the lists as they are: rebuilt first,
+    /// since the positions may have been written since the last substep.
+    fn forces_once(&mut self, forces: &mut Vec<V3<f32>>) -> Result<(), BackendError> {
         let n = self.model.node_count();
+        self.mark_stale();
         let kernel = forces_kernel(self.mode, &self.gpu.pipelines, &self.buffers);
         let group = self.groups.forces_only.at(self.parity);
         let workgroups = |threads: usize| self.gpu.groups(threads as u32).unwrap_or((1, 1));
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
+            self.list_plan(self.parity, &mut |d| d.record(&mut pass));
             let dispatch = |pipeline, threads| Dispatch {
                 pass: "",
                 stages: &[],
                 pipeline,
                 group,
                 workgroups: workgroups(threads),
+                indirect: None,
             };
             if let Some(scatter) = kernel.scatter {
                 dispatch(scatter, n.max(self.model.contacts().len())).record(&mut pass);
@@ -261,7 +412,35 @@ impl GpuFabric {
     }
 
     pub(crate) fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
-        advance_with_rollback(self, substeps)
+        self.grow_when_crowded(|fabric| advance_with_rollback(fabric, substeps))
+    }
+
+    /// Run `work`; when it fails because a segment had more self-contact
+    /// candidates than its list holds (the state already put back), double
+    /// the slots until they hold them, remake the lists and run it again.
+    ///
+    /// # Errors
+    /// `work`'s, or [`BackendError::TooLarge`] naming the binding limit
+    /// when lists that large do not fit the device.
+    fn grow_when_crowded<R>(
+        &mut self,
+        mut work: impl FnMut(&mut Self) -> Result<R, BackendError>,
+    ) -> Result<R, BackendError> {
+        loop {
+            let result = work(self);
+            let Some(needed) = self.crowded.take() else { return result };
+            let slots = needed.next_power_of_two().max(2 * self.slots);
+            fits_binding(
+                &self.gpu,
+                "the self-contact candidate lists (bytes)",
+                lists_bytes(self.model.node_count(), slots),
+            )?;
+            self.slots = slots;
+            // New lists start stale; the grid and its rebuild count stay.
+            self.buffers.lists = storage(&self.gpu.device, "lists", &lists(&self.model, slots));
+            self.groups = Groups::new(&self.gpu, self.mode, &self.buffers);
+            self.write_params();
+        }
     }
 
     /// Copy `bytes` of `buffer` back to the CPU, waiting for the device.
@@ -320,19 +499,31 @@ impl GpuFabric {
     /// the only wait): a fixed-point overflow, or a diverged state, which
     /// the read-back state then names. In the browser, where nothing may
     /// wait, only device errors are reported.
-    fn check_status(&self, first: u64, end: u64) -> Result<(), BackendError> {
+    fn check_status(&mut self, first: u64, end: u64) -> Result<(), BackendError> {
         if cfg!(target_arch = "wasm32") {
             return finish(&self.gpu);
         }
         let status = pollster::block_on(read_mapped(&self.gpu.device, &self.buffers.status_readback))
             .map_err(BackendError::Device)?;
         self.gpu.take_error().map_err(BackendError::Device)?;
-        let status = bytemuck::pod_read_unaligned::<u32>(&status[..4]);
-        if status & (OVERFLOWED | DIVERGED) == 0 {
+        let [bits, crowd]: [u32; 2] = bytemuck::pod_read_unaligned(&status[..8]);
+        if bits & (OVERFLOWED | DIVERGED | CROWDED | STRETCHED) == 0 {
             return Ok(());
         }
-        if status & OVERFLOWED != 0 {
+        if bits & OVERFLOWED != 0 {
             return Err(BackendError::Overflow { first, end, max_force: max_force() });
+        }
+        if bits & STRETCHED != 0 {
+            return Err(BackendError::Overstretched { first, end });
+        }
+        if bits & CROWDED != 0 {
+            self.crowded = Some(crowd);
+            return Err(BackendError::TooLarge {
+                what: "self-contact candidates near one segment",
+                needed: u64::from(crowd),
+                limit: u64::from(self.slots),
+                limit_name: "the slots per candidate list",
+            });
         }
         let limit = self.model.divergence_speed();
         let n = self.model.node_count();
@@ -406,10 +597,12 @@ impl Rollback for GpuFabric {
         encoder.copy_buffer_to_buffer(saved_v, 0, &self.buffers.v[parity.v], 0, saved_v.size());
         self.gpu.queue.submit([encoder.finish()]);
         (self.parity, self.substeps) = (parity, substeps);
-        // The GPU's copies of re-seated rests moved on with the batch.
+        // The GPU's copies of re-seated rests moved on with the batch, and
+        // its lists were built for states put back.
         if !self.model.reseating().is_empty() {
             self.upload_contacts();
         }
+        self.mark_stale();
         finish(&self.gpu)
     }
 }

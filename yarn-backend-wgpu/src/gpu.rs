@@ -59,6 +59,10 @@ pub(crate) struct Pipelines {
     pub(crate) fused: PassPipelines<1>,
     pub(crate) reseat: PassPipelines<1>,
     pub(crate) check: PassPipelines<1>,
+    /// Self-contact's list passes: whether to rebuild, then the rebuild.
+    pub(crate) plan: PassPipelines<1>,
+    pub(crate) grid_insert: PassPipelines<1>,
+    pub(crate) grid_find: PassPipelines<1>,
 }
 
 /// A GPU device with yarnify's pipelines, shareable between backends.
@@ -157,7 +161,7 @@ impl Gpu {
             gather: build(
                 &device,
                 &shaders::GATHER,
-                &[Uniform, Read, ReadWrite, ReadWrite, Read, Read, Read],
+                &[Uniform, Read, ReadWrite, ReadWrite, Read, Read, Read, ReadWrite],
                 ["step", "forces"],
             ),
             fixed: build(
@@ -169,7 +173,7 @@ impl Gpu {
             friction: build(
                 &device,
                 &shaders::FRICTION,
-                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read],
+                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, ReadWrite],
                 ["main"],
             ),
             pins: build(&device, &shaders::PINS, &[Uniform, ReadWrite, ReadWrite, Read], ["main"]),
@@ -180,7 +184,15 @@ impl Gpu {
                 ["main"],
             ),
             reseat: build(&device, &shaders::RESEAT, &[Uniform, ReadWrite, ReadWrite, Read], ["main"]),
-            check: build(&device, &shaders::CHECK, &[Uniform, Read, Read, ReadWrite], ["main"]),
+            check: build(&device, &shaders::CHECK, &[Uniform, Read, Read, ReadWrite, ReadWrite], ["main"]),
+            plan: build(&device, &shaders::PLAN, &[Uniform, ReadWrite, ReadWrite, ReadWrite], ["main"]),
+            grid_insert: build(&device, &shaders::GRID_INSERT, &[Uniform, Read, Read, ReadWrite], ["main"]),
+            grid_find: build(
+                &device,
+                &shaders::GRID_FIND,
+                &[Uniform, Read, ReadWrite, ReadWrite, Read, ReadWrite],
+                ["main"],
+            ),
         };
         let limits = device.limits();
         let timestamps = features.contains(wgpu::Features::TIMESTAMP_QUERY);

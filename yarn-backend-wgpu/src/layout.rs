@@ -32,6 +32,46 @@ pub(crate) struct GpuParams {
     pub(crate) reseat_step: f32,
     /// Entries in the reseat buffer.
     pub(crate) reseats: u32,
+    /// Self-contact: k_sc, h k_sc / m, and the reach 2r.
+    pub(crate) self_contact: f32,
+    pub(crate) self_impulse: f32,
+    pub(crate) reach: f32,
+    /// The yarn radius r, k_col and h k_col / m.
+    pub(crate) radius: f32,
+    pub(crate) collider: f32,
+    pub(crate) collider_impulse: f32,
+    /// The candidate grid: cell edge, 2r plus the skin, half the skin,
+    /// buckets − 1, slots per segment's list.
+    pub(crate) cell: f32,
+    pub(crate) search_reach: f32,
+    pub(crate) half_skin: f32,
+    pub(crate) mask: u32,
+    pub(crate) slots: u32,
+    /// How many of `surfaces` are set.
+    pub(crate) colliders: u32,
+    /// The workgroups of a full rebuild.
+    pub(crate) rebuild_x: u32,
+    pub(crate) rebuild_y: u32,
+    /// The longest segment the grid holds; longer ones are long.
+    pub(crate) short: f32,
+    /// Unused: `surfaces` starts on 16 bytes.
+    pub(crate) _pad: u32,
+    pub(crate) surfaces: [GpuSurface; MAX_COLLIDERS],
+}
+
+/// The most colliders the GPU holds (`MAX_COLLIDERS` in `common.wgsl`):
+/// they ride in the parameters' uniform, so no pass needs another binding.
+pub const MAX_COLLIDERS: usize = 8;
+
+/// Mirrors `Surface`: a plane collider as the substep uses it.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable)]
+pub(crate) struct GpuSurface {
+    pub(crate) normal: [f32; 3],
+    pub(crate) offset: f32,
+    pub(crate) thickness: f32,
+    pub(crate) friction: f32,
+    pub(crate) _pad: [f32; 2],
 }
 
 /// `Params::flags` bit: friction is on, so the move is in the friction pass.
@@ -45,6 +85,17 @@ pub(crate) const OVERFLOWED: u32 = 1;
 
 /// `status[0]` bit: a velocity diverged.
 pub(crate) const DIVERGED: u32 = 2;
+
+/// `status[0]` bit: more self-contact candidates lay near a segment than
+/// its list holds; `status[1]` says how many.
+pub(crate) const CROWDED: u32 = 4;
+
+/// `status[0]` bit: yarn stretched past what the candidate grid's search
+/// covers.
+pub(crate) const STRETCHED: u32 = 8;
+
+/// `Params::flags` bit: self-contact is on.
+pub(crate) const SELF_CONTACT: u32 = 4;
 
 /// Mirrors `Contact`.
 #[repr(C)]
@@ -138,11 +189,42 @@ mod tests {
             offset_of!(GpuParams, max_speed),
             offset_of!(GpuParams, reseat_step),
             offset_of!(GpuParams, reseats),
+            offset_of!(GpuParams, self_contact),
+            offset_of!(GpuParams, self_impulse),
+            offset_of!(GpuParams, reach),
+            offset_of!(GpuParams, radius),
+            offset_of!(GpuParams, collider),
+            offset_of!(GpuParams, collider_impulse),
+            offset_of!(GpuParams, cell),
+            offset_of!(GpuParams, search_reach),
+            offset_of!(GpuParams, half_skin),
+            offset_of!(GpuParams, mask),
+            offset_of!(GpuParams, slots),
+            offset_of!(GpuParams, colliders),
+            offset_of!(GpuParams, rebuild_x),
+            offset_of!(GpuParams, rebuild_y),
+            offset_of!(GpuParams, short),
+            offset_of!(GpuParams, _pad),
+            offset_of!(GpuParams, surfaces),
         ];
         assert_eq!(members.len(), rust.len(), "field count differs: {members:?}");
         for ((name, wgsl), rust) in members.iter().zip(rust) {
             assert_eq!(*wgsl as usize, rust, "Params.{name}");
         }
+    }
+
+    #[test]
+    fn surface_matches_wgsl() {
+        let (size, members) = wgsl_layout("Surface");
+        assert_eq!(size as usize, size_of::<GpuSurface>());
+        let rust = [
+            offset_of!(GpuSurface, normal),
+            offset_of!(GpuSurface, offset),
+            offset_of!(GpuSurface, thickness),
+            offset_of!(GpuSurface, friction),
+        ];
+        assert_eq!(members.into_iter().map(|(_, o)| o as usize).collect::<Vec<_>>(), rust);
+        assert!(shaders::COMMON.contains(&format!("const MAX_COLLIDERS: u32 = {MAX_COLLIDERS}u;")));
     }
 
     #[test]
@@ -200,5 +282,13 @@ mod tests {
         assert!(common.contains(&format!("const FUSED_FMA: u32 = {FUSED_FMA}u;")), "FUSED_FMA differs");
         assert!(common.contains(&format!("const OVERFLOWED: u32 = {OVERFLOWED}u;")), "OVERFLOWED differs");
         assert!(common.contains(&format!("const DIVERGED: u32 = {DIVERGED}u;")), "DIVERGED differs");
+        assert!(common.contains(&format!("const CROWDED: u32 = {CROWDED}u;")), "CROWDED differs");
+        assert!(common.contains(&format!("const STRETCHED: u32 = {STRETCHED}u;")), "STRETCHED differs");
+        assert!(common.contains(&format!("const SELF_CONTACT: u32 = {SELF_CONTACT}u;")), "SELF_CONTACT differs");
+        let grid = shaders::GRID;
+        use yarn_model::self_contact::grid::{MAX_BOX, MAX_LONG};
+        assert!(grid.contains(&format!("const MAX_LONG: u32 = {MAX_LONG}u;")));
+        assert!(grid.contains(&format!("const MAX_BOX: i32 = {MAX_BOX};")));
+        assert!(grid.contains(&format!("const EMPTY: u32 = {:#x}u;", yarn_model::self_contact::grid::EMPTY)));
     }
 }

@@ -65,11 +65,14 @@ pub mod shaders;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod testing;
 mod timing;
+#[cfg(test)]
+mod touch_tests;
 
 use std::sync::Arc;
 
 use fabric::{GpuFabric, check_fits, finish, vectors};
 pub use gpu::{Gpu, GpuError, read_mapped};
+pub use layout::MAX_COLLIDERS;
 pub use wgpu;
 use yarn_model::{Backend, BackendError, Model, Params, StageTimes, State, V3};
 use yarn_topology::{Fabric, Pin};
@@ -241,7 +244,7 @@ impl Backend for Wgpu {
     }
 
     fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError> {
-        BackendError::unless_self_contact(params, "wgpu")?;
+        fabric::refuse_self_contact(self.mode, params)?;
         let model = Model::<f32>::new(fabric, params)?;
         check_fits(&self.gpu, &model)?;
         // The fabric is accepted: free the previous one's buffers before
@@ -267,18 +270,11 @@ impl Backend for Wgpu {
         self.loaded()?.set_contacts_alive(alive)
     }
 
-    /// As the trait says, but colliders do not run on the GPU yet: any
-    /// collider is [`BackendError::Unsupported`].
+    /// As the trait says; the GPU holds at most
+    /// [`MAX_COLLIDERS`] (8), and more are
+    /// [`BackendError::Unsupported`].
     fn set_colliders(&mut self, colliders: &[yarn_model::Collider]) -> Result<(), BackendError> {
-        let loaded = self.loaded()?;
-        if !colliders.is_empty() {
-            return Err(BackendError::Unsupported {
-                backend: "wgpu",
-                feature: "colliders",
-                remedy: "set no colliders",
-            });
-        }
-        loaded.model.set_colliders(colliders)
+        self.loaded()?.set_colliders(colliders)
     }
 
     fn write_state(&mut self, state: &State<f32>) -> Result<(), BackendError> {
@@ -298,6 +294,12 @@ impl Backend for Wgpu {
     fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
         self.loaded()?.advance(substeps)?;
         self.checkpoint_if_due()
+    }
+
+    /// As the trait says, counted by the GPU and read back; `None` in the
+    /// browser.
+    fn self_contact_builds(&self) -> Option<u64> {
+        self.loaded.as_ref()?.self_contact_builds()
     }
 
     fn model(&self) -> Result<&Model<f32>, BackendError> {

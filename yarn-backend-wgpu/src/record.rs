@@ -22,6 +22,9 @@ pub(crate) struct Dispatch<'a> {
     pub(crate) pipeline: &'a wgpu::ComputePipeline,
     pub(crate) group: &'a wgpu::BindGroup,
     pub(crate) workgroups: (u32, u32),
+    /// Where the GPU itself wrote the workgroup counts, instead of
+    /// `workgroups`: the list rebuild, which `plan.wgsl` turns on or off.
+    pub(crate) indirect: Option<&'a wgpu::Buffer>,
 }
 
 impl Dispatch<'_> {
@@ -29,7 +32,10 @@ impl Dispatch<'_> {
     pub(crate) fn record(&self, pass: &mut wgpu::ComputePass<'_>) {
         pass.set_pipeline(self.pipeline);
         pass.set_bind_group(0, self.group, &[]);
-        pass.dispatch_workgroups(self.workgroups.0, self.workgroups.1, 1);
+        match self.indirect {
+            Some(counts) => pass.dispatch_workgroups_indirect(counts, 0),
+            None => pass.dispatch_workgroups(self.workgroups.0, self.workgroups.1, 1),
+        }
     }
 }
 
@@ -41,6 +47,8 @@ const FRICTION_AND_MOVE: &[Stage] = &[Stage::Friction, Stage::Move];
 const PINS: &[Stage] = &[Stage::Pins];
 const RESEAT: &[Stage] = &[Stage::Reseat];
 const CHECK: &[Stage] = &[Stage::Check];
+/// The self-contact lists are part of finding the forces.
+const LISTS: &[Stage] = &[Stage::Forces];
 
 impl GpuFabric {
     /// Workgroups for `threads` threads (one, if even that does not fit:
@@ -51,8 +59,55 @@ impl GpuFabric {
 
     /// Whether an advance runs gather mode's substep with friction as one
     /// dispatch (`fused.wgsl`) at this size.
+    /// Whether a substep runs the friction pass: some contact or collider
+    /// has friction (`FRICTION_ON`).
+    pub(crate) fn friction_on(&self) -> bool {
+        self.model.coeffs().friction > 0.0 || self.model.surfaces().iter().any(|s| s.friction > 0.0)
+    }
+
+    /// Self-contact and colliders take the unfused passes.
     pub(crate) fn fuses(&self) -> bool {
-        self.mode == Mode::Gather && self.model.coeffs().friction > 0.0 && self.model.node_count() < self.fuse_below
+        self.mode == Mode::Gather
+            && self.model.coeffs().friction > 0.0
+            && self.model.node_count() < self.fuse_below
+            && !self.model.self_contact()
+            && self.model.surfaces().is_empty()
+    }
+
+    /// Hand the self-contact list passes of one substep from `at` to
+    /// `each`: whether to rebuild (`plan.wgsl`), then the rebuild's two
+    /// passes, dispatched indirectly by its answer. Nothing with
+    /// self-contact off.
+    pub(crate) fn list_plan<'s>(&'s self, at: Parity, each: &mut impl FnMut(&Dispatch<'s>)) {
+        if !self.model.self_contact() {
+            return;
+        }
+        let pipelines = &self.gpu.pipelines;
+        let (groups, counts) = (&self.groups, Some(&self.buffers.rebuild));
+        each(&Dispatch {
+            pass: "plan.wgsl",
+            stages: LISTS,
+            pipeline: &pipelines.plan.entries[0],
+            group: &groups.plan,
+            workgroups: (1, 1),
+            indirect: None,
+        });
+        each(&Dispatch {
+            pass: "grid_insert.wgsl",
+            stages: LISTS,
+            pipeline: &pipelines.grid_insert.entries[0],
+            group: groups.grid_insert.at(at),
+            workgroups: (0, 0),
+            indirect: counts,
+        });
+        each(&Dispatch {
+            pass: "grid_find.wgsl",
+            stages: LISTS,
+            pipeline: &pipelines.grid_find.entries[0],
+            group: groups.grid_find.at(at),
+            workgroups: (0, 0),
+            indirect: counts,
+        });
     }
 
     /// Hand each dispatch of one substep from `at` to `each`, in order:
@@ -69,7 +124,7 @@ impl GpuFabric {
         let pipelines = &self.gpu.pipelines;
         let groups = &self.groups;
         let nodes = self.workgroups(self.model.node_count());
-        let friction = self.model.coeffs().friction > 0.0;
+        let friction = self.friction_on();
         let mut next = at;
         if fuse {
             let group = groups.fused.at(at);
@@ -79,17 +134,33 @@ impl GpuFabric {
                 pipeline: &pipelines.fused.entries[0],
                 group,
                 workgroups: nodes,
+                indirect: None,
             });
             next = Parity { x: 1 - at.x, v: 1 - at.v };
         } else {
+            self.list_plan(at, each);
             let forces = forces_kernel(self.mode, pipelines, &self.buffers);
             let group = groups.step.at(at);
             if let Some(scatter) = forces.scatter {
                 let workgroups = self.workgroups(self.model.node_count().max(self.model.contacts().len()));
-                each(&Dispatch { pass: "fixed.wgsl scatter", stages: FORCES, pipeline: scatter, group, workgroups });
+                each(&Dispatch {
+                    pass: "fixed.wgsl scatter",
+                    stages: FORCES,
+                    pipeline: scatter,
+                    group,
+                    workgroups,
+                    indirect: None,
+                });
             }
             let stages = if friction { FORCES } else { FORCES_AND_MOVE };
-            each(&Dispatch { pass: forces.step_name, stages, pipeline: forces.step, group, workgroups: nodes });
+            each(&Dispatch {
+                pass: forces.step_name,
+                stages,
+                pipeline: forces.step,
+                group,
+                workgroups: nodes,
+                indirect: None,
+            });
             if friction {
                 let group = groups.friction.at(at);
                 let pipeline = &pipelines.friction.entries[0];
@@ -99,6 +170,7 @@ impl GpuFabric {
                     pipeline,
                     group,
                     workgroups: nodes,
+                    indirect: None,
                 });
                 next.v = 1 - at.v;
             }
@@ -114,12 +186,13 @@ impl GpuFabric {
                 pipeline: &pipelines.pins.entries[0],
                 group,
                 workgroups,
+                indirect: None,
             });
         }
         if reseat {
             let workgroups = self.gpu.groups(self.buffers.reseat_count).unwrap_or((1, 1));
             let (pipeline, group) = (&pipelines.reseat.entries[0], &groups.reseat);
-            each(&Dispatch { pass: "reseat.wgsl", stages: RESEAT, pipeline, group, workgroups });
+            each(&Dispatch { pass: "reseat.wgsl", stages: RESEAT, pipeline, group, workgroups, indirect: None });
         }
         next
     }
@@ -132,6 +205,7 @@ impl GpuFabric {
             pipeline: &self.gpu.pipelines.check.entries[0],
             group: self.groups.check.at(at),
             workgroups: self.workgroups(self.model.node_count()),
+            indirect: None,
         }
     }
 }

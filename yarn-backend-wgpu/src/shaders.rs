@@ -13,6 +13,13 @@ pub const NODE_FORCE: &str = include_str!("../shaders/node_force.wgsl");
 pub const UPDATE: &str = include_str!("../shaders/update.wgsl");
 /// One node's sum of friction changes.
 pub const NODE_FRICTION: &str = include_str!("../shaders/node_friction.wgsl");
+/// The self-contact candidate lists' layout and the closest points of two
+/// segments.
+pub const LISTS: &str = include_str!("../shaders/lists.wgsl");
+/// Self-contact: the pair forces and friction, summed over the lists.
+pub const TOUCH: &str = include_str!("../shaders/touch.wgsl");
+/// The candidate grid's layout and hashing.
+pub const GRID: &str = include_str!("../shaders/grid.wgsl");
 
 /// A pass: its own file, and the shared functions it calls.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -39,14 +46,20 @@ impl Pass {
 
 /// Gather mode's forces and damped velocity update (entry points `step`
 /// and `forces`).
-pub const GATHER: Pass =
-    Pass { name: "gather.wgsl", uses: &[NODE_FORCE, UPDATE], body: include_str!("../shaders/gather.wgsl") };
+pub const GATHER: Pass = Pass {
+    name: "gather.wgsl",
+    uses: &[NODE_FORCE, LISTS, TOUCH, UPDATE],
+    body: include_str!("../shaders/gather.wgsl"),
+};
 /// Fixed-point mode's scatter, then its velocity update (entry points
 /// `scatter`, `step` and `forces`).
 pub const FIXED: Pass = Pass { name: "fixed.wgsl", uses: &[UPDATE], body: include_str!("../shaders/fixed.wgsl") };
 /// Friction and the move, both modes (entry point `main`).
-pub const FRICTION: Pass =
-    Pass { name: "friction.wgsl", uses: &[NODE_FRICTION], body: include_str!("../shaders/friction.wgsl") };
+pub const FRICTION: Pass = Pass {
+    name: "friction.wgsl",
+    uses: &[NODE_FRICTION, LISTS, TOUCH],
+    body: include_str!("../shaders/friction.wgsl"),
+};
 /// Pins (entry point `main`).
 pub const PINS: Pass = Pass { name: "pins.wgsl", uses: &[], body: include_str!("../shaders/pins.wgsl") };
 
@@ -58,7 +71,20 @@ pub const FUSED: Pass = Pass { name: "fused.wgsl", uses: &[NODE_FORCE], body: in
 pub const RESEAT: Pass = Pass { name: "reseat.wgsl", uses: &[], body: include_str!("../shaders/reseat.wgsl") };
 
 /// The divergence check at the end of a batch (entry point `main`).
-pub const CHECK: Pass = Pass { name: "check.wgsl", uses: &[], body: include_str!("../shaders/check.wgsl") };
+pub const CHECK: Pass = Pass { name: "check.wgsl", uses: &[LISTS], body: include_str!("../shaders/check.wgsl") };
+
+/// Whether the self-contact lists are rebuilt this substep (entry point
+/// `main`, one thread).
+pub const PLAN: Pass = Pass { name: "plan.wgsl", uses: &[LISTS, GRID], body: include_str!("../shaders/plan.wgsl") };
+
+/// A rebuild's first pass: segments into the grid (entry point `main`).
+pub const GRID_INSERT: Pass =
+    Pass { name: "grid_insert.wgsl", uses: &[LISTS, GRID], body: include_str!("../shaders/grid_insert.wgsl") };
+
+/// A rebuild's second pass: each segment's sorted candidates (entry point
+/// `main`).
+pub const GRID_FIND: Pass =
+    Pass { name: "grid_find.wgsl", uses: &[LISTS, GRID], body: include_str!("../shaders/grid_find.wgsl") };
 
 /// A plain copy, to measure bandwidth (entry point `main`).
 pub const COPY: Pass = Pass { name: "copy.wgsl", uses: &[], body: include_str!("../shaders/copy.wgsl") };
@@ -67,7 +93,8 @@ pub const COPY: Pass = Pass { name: "copy.wgsl", uses: &[], body: include_str!("
 pub const FMA_TEST: Pass = Pass { name: "fma_test.wgsl", uses: &[], body: include_str!("../shaders/fma_test.wgsl") };
 
 /// Every pass, for validation.
-pub const ALL: [Pass; 9] = [GATHER, FIXED, FRICTION, PINS, FUSED, RESEAT, CHECK, COPY, FMA_TEST];
+pub const ALL: [Pass; 12] =
+    [GATHER, FIXED, FRICTION, PINS, FUSED, RESEAT, CHECK, PLAN, GRID_INSERT, GRID_FIND, COPY, FMA_TEST];
 
 #[cfg(test)]
 pub(crate) mod tests {

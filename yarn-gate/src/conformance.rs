@@ -727,11 +727,8 @@ pub mod strategy {
                         .state
                         .positions
                         .iter()
-                        .zip(scene.fabric.positions())
-                        .map(|(x, rest)| {
-                            let rest = V3::new(rest.x as f32, rest.y as f32, rest.z as f32);
-                            rest + (x - rest) * 0.2
-                        })
+                        .zip(State::<f32>::at_rest(&scene.fabric).positions)
+                        .map(|(x, rest)| rest + (x - rest) * 0.2)
                         .collect(),
                     ..scene.state
                 };
@@ -890,9 +887,8 @@ mod tests {
             !pairs.is_empty()
         });
         let pressing = share(&|s| {
-            let model = yarn_model::Model::<f32>::new(&s.fabric, &s.params).unwrap();
+            let mut model = yarn_model::Model::<f32>::new(&s.fabric, &s.params).unwrap();
             let r = s.fabric.yarn_radius() as f32;
-            let mut model = model;
             model.set_colliders(&s.colliders).unwrap();
             s.state.positions.iter().any(|x| model.surfaces()[0].depth(x, r).is_some())
         });

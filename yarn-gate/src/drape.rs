@@ -19,7 +19,7 @@ use yarn_model::step::segment_end;
 use yarn_model::terms::closest_gap;
 use yarn_model::{Backend, Collider, Model, Params, Plane, State, V3, widen};
 use yarn_render::{Renderer, View, tube_obj};
-use yarn_topology::{Fabric, Vec3};
+use yarn_topology::Fabric;
 
 use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
@@ -250,42 +250,12 @@ pub fn drape_params(params: Params, stiffness: Option<f64>) -> Params {
     Params { gravity: DRAPE_GRAVITY, self_contact_stiffness: k_sc, ..params }
 }
 
-/// The patch laid flat, face up, its lowest point `drop` above y = 0:
-/// the chart's plane (x along the course, y along the wale) turned onto
-/// the floor's. Folded, the half past the middle of the course is first
-/// bent up and over the other half round a half-cylinder whose inner face
-/// keeps its length, so the yarn starts stretched at the bend, never
-/// pressed into itself, and the two layers start well apart.
+/// The start of a drape: the patch laid flat, face up, its lowest point
+/// `drop` above the floor y = 0, folded in half with `fold`
+/// ([`Fabric::laid_flat`]), at rest.
 pub fn drape_start(fabric: &Fabric, fold: bool, drop: f64) -> State<f64> {
-    let positions = fabric.positions();
-    let r = fabric.yarn_radius();
-    let (lo, hi) = positions
-        .iter()
-        .fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
-    let middle = 0.5 * (lo.x + hi.x);
-    let (mid, thickness) = (0.5 * (lo.z + hi.z), hi.z - lo.z);
-    // The inner face of the fold keeps its length, so the bend only
-    // stretches yarn (compressed, it would start pressed into itself); an
-    // inner radius of twice the thickness stretches the outer face by half.
-    let inner = 2.0 * thickness + 2.0 * r;
-    let bend = inner + 0.5 * thickness;
-    let folded = |p: &Vec3| -> Vec3 {
-        let along = p.x - middle;
-        if !fold || along <= 0.0 {
-            return *p;
-        }
-        // Round a half-cylinder about the line x = middle, z = mid + bend,
-        // then flat back over the first half.
-        let angle = (along / inner).min(std::f64::consts::PI);
-        let past = (along - inner * std::f64::consts::PI).max(0.0);
-        let radius = bend - (p.z - mid);
-        Vec3::new(middle + radius * angle.sin() - past, p.y, mid + bend - radius * angle.cos())
-    };
-    // (x, y, z) → (x, z, −y): the chart's normal becomes up.
-    let laid: Vec<V3<f64>> = positions.iter().map(folded).map(|p| V3::new(p.x, p.z, -p.y)).collect();
-    let lowest = laid.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
-    let lift = V3::new(0.0, drop - lowest, 0.0);
-    State { positions: laid.iter().map(|p| p + lift).collect(), velocities: vec![V3::zeros(); laid.len()] }
+    let positions = fabric.laid_flat(fold, drop);
+    State { velocities: vec![V3::zeros(); positions.len()], positions }
 }
 
 /// Run a drape on one backend, measuring after every substep.
@@ -381,12 +351,8 @@ impl Watch {
         if closest < TOO_CLOSE_RADII * r {
             self.too_close += 1;
         }
-        for (lowest, collider) in self.lowest.iter_mut().zip(model.colliders()) {
-            for p in x {
-                if let Some(h) = collider.distance(&widen(p)) {
-                    *lowest = lowest.min(h);
-                }
-            }
+        for (lowest, surface) in self.lowest.iter_mut().zip(model.surfaces()) {
+            *lowest = x.iter().filter_map(|p| surface.height(p)).fold(*lowest, f64::min);
         }
     }
 }

@@ -84,8 +84,8 @@ macro_rules! conformance {
 }
 
 /// The checks on scenes with self-contact and a floor
-/// ([`strategy::touching_scene`]), for the backends that run them:
-/// `touching!(name, make, tolerance)`.
+/// ([`strategy::touching_scene`]), for the backends and modes that run
+/// them: `touching!(name, make, tolerance)`, `make` as in `conformance!`.
 macro_rules! touching {
     ($name:ident, $make:expr, $tolerance:expr) => {
         mod $name {
@@ -96,26 +96,33 @@ macro_rules! touching {
 
                 #[test]
                 fn forces_with_self_contact_and_a_floor(scene in strategy::touching_scene()) {
-                    conformance::forces_match_reference($make, &scene, &$tolerance);
+                    if let Some(make) = $make {
+                        conformance::forces_match_reference(make, &scene, &$tolerance);
+                    }
                 }
 
                 #[test]
                 fn one_substep_with_self_contact_and_a_floor(scene in strategy::touching_scene()) {
-                    conformance::substep_matches_reference($make, &scene, &$tolerance);
+                    if let Some(make) = $make {
+                        conformance::substep_matches_reference(make, &scene, &$tolerance);
+                    }
                 }
 
                 #[test]
                 fn trajectory_with_self_contact_and_a_floor(scene in strategy::touching_scene()) {
-                    let compared = conformance::trajectory_matches_reference($make, &scene, &$tolerance);
-                    prop_assume!(compared.is_some(), "too chaotic to compare with the reference");
+                    if let Some(make) = $make {
+                        let compared = conformance::trajectory_matches_reference(make, &scene, &$tolerance);
+                        prop_assume!(compared.is_some(), "too chaotic to compare with the reference");
+                    }
                 }
             }
         }
     };
 }
 
-touching!(serial_f32_touching, Serial::<f32>::new, Tolerance::CPU_F32);
-touching!(rayon_three_threads_touching, || Rayon::with_threads(3).unwrap(), Tolerance::CPU_F32);
+touching!(serial_f32_touching, cpu(Serial::<f32>::new), Tolerance::CPU_F32);
+touching!(rayon_three_threads_touching, cpu(|| Rayon::with_threads(3).unwrap()), Tolerance::CPU_F32);
+touching!(wgpu_gather_touching, wgpu(Mode::Gather), Tolerance::GPU_GATHER);
 
 /// The shared GPU, or `None` with the skip counted when this machine has
 /// no adapter ([`yarn_backend_wgpu::testing`]).
@@ -181,6 +188,19 @@ proptest! {
             backend.set_fuse_below(fuse_below);
             conformance::assert_bit_for_bit(backend, Serial::<f32>::new(), &scene);
         }
+    }
+
+    /// The GPU gather is `Serial<f32>` bit for bit with self-contact and
+    /// a floor: each segment's sorted list is summed in the order of the
+    /// CPU's per-segment entries, every pair from its lower segment, with
+    /// the CPU's rounding; the lists themselves may differ in pairs out of
+    /// reach, which add exactly zero. Sleeping is off: the GPU never
+    /// sleeps.
+    #[test]
+    fn wgpu_gather_is_serial_f32_bit_for_bit_with_self_contact_and_a_floor(scene in strategy::touching_scene()) {
+        let Some(gpu) = gpu() else { return Ok(()) };
+        let scene = conformance::Scene { params: Params { sleep_speed: 0.0, ..scene.params }, ..scene };
+        conformance::assert_bit_for_bit(Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather), Serial::<f32>::new(), &scene);
     }
 
     /// `Rayon` is `Serial<f32>` bit for bit with self-contact and a floor:
@@ -286,26 +306,47 @@ fn measure_trajectory_errors() {
     println!("ceilings: {} r, energy {}", conformance::TRAJECTORY_CEILING, conformance::ENERGY_CEILING);
 }
 
-/// The GPU refuses what it does not run yet, saying what to turn off, and
-/// keeps running what it had.
+/// The GPU runs self-contact and colliders in gather mode, also when
+/// self-contact is turned on after load; fixed point, whose scatter has no
+/// pair term, refuses self-contact by name, and more colliders than the GPU
+/// holds, or a bad one, are refused with the colliders kept.
 #[test]
-fn wgpu_refuses_self_contact_and_colliders_until_it_runs_them() {
-    let Some(make) = wgpu(Mode::Gather) else { return };
+fn wgpu_refuses_what_it_does_not_run_and_keeps_what_it_had() {
+    use yarn_model::{BackendError, Collider, ColliderError, Plane};
+    let Some(gpu) = gpu() else { return };
     let fabric = Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::default()).unwrap();
-    let with = Params { self_contact_stiffness: 1600.0, ..Params::default() };
-    let mut gpu = make();
-    let refused = |e: Result<(), yarn_model::BackendError>, feature: &str| match e {
-        Err(error @ yarn_model::BackendError::Unsupported { .. }) => {
+    // The GPU never sleeps; `Serial` would, which compares nothing.
+    let with = Params { self_contact_stiffness: 1600.0, sleep_speed: 0.0, ..Params::default() };
+    let refused = |e: Result<(), BackendError>, words: &[&str]| match e {
+        Err(error @ BackendError::Unsupported { .. }) => {
             let message = error.to_string();
-            assert!(message.contains(feature) && message.contains("CPU backend"), "{message}");
+            assert!(words.iter().all(|w| message.contains(w)), "{message}");
         }
-        other => panic!("expected {feature} refused, got {other:?}"),
+        other => panic!("expected {words:?} refused, got {other:?}"),
     };
-    refused(gpu.load(&fabric, &with), "self-contact");
-    gpu.load(&fabric, &Params::default()).unwrap();
-    refused(gpu.set_params(&with), "self-contact");
-    refused(gpu.set_colliders(&[yarn_model::Collider::Plane(yarn_model::Plane::floor(0.0))]), "colliders");
-    assert_eq!(gpu.model().unwrap().params(), &Params::default());
-    assert!(gpu.model().unwrap().colliders().is_empty());
-    gpu.advance(10).unwrap();
+    let mut fixed = Wgpu::with_gpu(Arc::clone(&gpu), Mode::FixedPointAtomic);
+    refused(fixed.load(&fabric, &with), &["self-contact", "Mode::Gather"]);
+    fixed.load(&fabric, &Params::default()).unwrap();
+    refused(fixed.set_params(&with), &["self-contact", "Mode::Gather"]);
+    assert_eq!(fixed.model().unwrap().params(), &Params::default());
+
+    let floor = Collider::Plane(Plane::floor(-4.0));
+    let mut gather = Wgpu::with_gpu(gpu, Mode::Gather);
+    gather.load(&fabric, &Params::default()).unwrap();
+    gather.set_params(&with).unwrap();
+    gather.set_colliders(&[floor]).unwrap();
+    refused(gather.set_colliders(&[floor; 9]), &["more than 8 colliders", "at most 8"]);
+    let bad = Collider::Plane(Plane { normal: yarn_topology::Vec3::zeros(), ..Plane::floor(0.0) });
+    assert_eq!(
+        gather.set_colliders(&[floor, bad]),
+        Err(BackendError::Collider(ColliderError::ZeroNormal { index: 1 }))
+    );
+    assert_eq!(gather.model().unwrap().colliders(), &[floor]);
+    let mut serial = Serial::<f32>::new();
+    serial.load(&fabric, &Params::default()).unwrap();
+    serial.set_params(&with).unwrap();
+    serial.set_colliders(&[floor]).unwrap();
+    gather.advance(30).unwrap();
+    serial.advance(30).unwrap();
+    assert_eq!(gather.state().unwrap(), serial.state().unwrap(), "turned on after load, it runs as the CPU does");
 }

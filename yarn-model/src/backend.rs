@@ -77,6 +77,22 @@ pub enum BackendError {
         /// The speed limit it passed.
         limit: f64,
     },
+    /// Yarn stretched further than the self-contact search covers (the
+    /// GPU's candidate grid, [`crate::self_contact::grid`]): past any
+    /// physical state. The state is as it was before the failing call.
+    #[error(
+        "yarn stretched past what the self-contact search covers during substeps {first}..{end} (more than {} \
+         segments at once past 1.5 times the longest rest segment, or one spanning more than {} grid cells); \
+         the state is as before this call: lower the substep, the stiffnesses or the applied pull",
+        crate::self_contact::grid::MAX_LONG,
+        crate::self_contact::grid::MAX_BOX
+    )]
+    Overstretched {
+        /// First substep of the failing call (counted since load).
+        first: u64,
+        /// One past its last substep.
+        end: u64,
+    },
     /// The compute device reported an error or was lost.
     #[error("compute device error: {0}")]
     Device(String),
@@ -91,24 +107,6 @@ pub enum BackendError {
         /// What turns it off, e.g. "set `self_contact_stiffness` to 0".
         remedy: &'static str,
     },
-}
-
-impl BackendError {
-    /// `Ok` unless `params` turn on self-contact, which `backend` does not
-    /// run yet: then [`BackendError::Unsupported`] naming it.
-    ///
-    /// # Errors
-    /// As above.
-    pub fn unless_self_contact(params: &Params, backend: &'static str) -> Result<(), BackendError> {
-        if params.self_contact_stiffness > 0.0 {
-            return Err(BackendError::Unsupported {
-                backend,
-                feature: "self-contact",
-                remedy: "set `self_contact_stiffness` to 0",
-            });
-        }
-        Ok(())
-    }
 }
 
 /// A compute backend: something that can hold a fabric and advance it by the

@@ -8,7 +8,7 @@
 //! collider's own coefficient, as the persistent contacts' is (SPEC §4
 //! step 3). Only a plane exists so far; [`Collider`] is an enum so that
 //! spheres, capsules and meshes can join it, each with its own
-//! [`Collider::distance`].
+//! [`Surface::height`].
 //!
 //! This module owns the shapes, their validation and the per-node term; the
 //! backends own where it runs.
@@ -130,14 +130,6 @@ impl Collider {
         }
         Ok(())
     }
-
-    /// The signed distance from `x` to the collider's surface, positive
-    /// outside, or `None` where `x` is beyond the solid's far side.
-    pub fn distance(&self, x: &yarn_topology::Vec3) -> Option<f64> {
-        let Collider::Plane(p) = self;
-        let d = (x - p.point).dot(&p.normal.normalize());
-        (d > -p.thickness).then_some(d)
-    }
 }
 
 /// A validated collider as the substep uses it, in the backend's precision:
@@ -177,14 +169,21 @@ impl<T: Real> Surface<T> {
             .collect()
     }
 
+    /// The signed height of `x` above the surface, negative inside the
+    /// solid, or `None` past the solid's far side.
+    #[inline]
+    pub fn height(&self, x: &V3<T>) -> Option<T> {
+        let height = self.normal.dot(x) - self.offset;
+        (height > -self.thickness).then_some(height)
+    }
+
     /// How deep a node at `x` of yarn radius `radius` presses into the
-    /// surface (r minus its centreline's height above it), when it does
+    /// surface (r minus its centreline's [`Surface::height`]), when it does
     /// and is not past the solid's far side.
     #[inline]
     pub fn depth(&self, x: &V3<T>, radius: T) -> Option<T> {
-        let height = self.normal.dot(x) - self.offset;
-        let depth = radius - height;
-        (depth > T::zero() && height > -self.thickness).then_some(depth)
+        let depth = radius - self.height(x)?;
+        (depth > T::zero()).then_some(depth)
     }
 
     /// ½ k δ² at `x`.
@@ -261,10 +260,7 @@ mod tests {
                 let slope = (surface.energy(&plus, r, k) - surface.energy(&minus, r, k)) / (2.0 * eps);
                 assert!((f[axis] + slope).abs() < 1e-5 * k, "height {height}, axis {axis}: {} vs {}", f[axis], -slope);
             }
-            assert!(
-                (Collider::Plane(plane).distance(&yarn_topology::Vec3::new(x.x, x.y, x.z)).unwrap() - height).abs()
-                    < 1e-12
-            );
+            assert!((surface.height(&x).unwrap() - height).abs() < 1e-12);
         }
         assert_eq!(surface.force(&on(0.95), r, k), None, "above r the yarn does not touch");
         assert_eq!(surface.force(&on(-2.1), r, k), None, "past the slab is the far side");

@@ -72,9 +72,12 @@ pub struct Scratch<T: Real> {
     /// Friction velocity correction per node from the persistent contacts
     /// (SPEC §4 step 3).
     pub friction: Vec<V3<T>>,
-    /// Per node: its self-contacts' friction corrections, in pair order
-    /// ([`self_contact_friction`]).
-    pub self_friction: Vec<Vec<V3<T>>>,
+    /// Per node: the sum of its self-contacts' friction corrections, in
+    /// pair order ([`self_contact_friction`]), and the longest one's
+    /// length, for [`cap`].
+    pub self_friction: Vec<V3<T>>,
+    /// See `self_friction`.
+    pub self_longest: Vec<T>,
     /// The self-contact candidate list, kept between substeps.
     pub candidates: Candidates<T>,
 }
@@ -266,6 +269,13 @@ pub fn self_contact_friction<T: Real>(
 pub fn capped_sum<T: Real>(changes: impl IntoIterator<Item = V3<T>>) -> V3<T> {
     let (sum, longest) =
         changes.into_iter().fold((V3::zeros(), T::zero()), |(sum, longest), dv| (sum + dv, longest.max(dv.norm())));
+    cap(sum, longest)
+}
+
+/// [`capped_sum`] from the sum of the changes and the longest one's
+/// length, for callers that accumulate both as they go.
+#[inline]
+pub fn cap<T: Real>(sum: V3<T>, longest: T) -> V3<T> {
     let length = sum.norm();
     if length > longest { sum * (longest / length) } else { sum }
 }
@@ -300,42 +310,43 @@ pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Sc
         *v = (*v + f * c.h_over_m) * c.damping_factor;
     }
     let (x, v) = (&state.positions, &mut state.velocities);
-    let yarn_friction = c.friction > T::zero();
-    scratch.friction.clear();
-    scratch.friction.resize(x.len(), V3::zeros());
-    if yarn_friction {
-        for (k, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
-            let (a, b) = (k.a as usize, k.b as usize);
-            if let Some(dw) = friction_change(&x[a], &x[b], &v[a], &v[b], k.rest, model) {
-                let half = dw * T::of(0.5);
-                scratch.friction[a] -= half;
-                scratch.friction[b] += half;
+    let surfaces = model.surfaces();
+    if c.friction > T::zero() || !surfaces.is_empty() {
+        let nodes = x.len();
+        scratch.friction.clear();
+        scratch.friction.resize(nodes, V3::zeros());
+        scratch.self_friction.clear();
+        scratch.self_friction.resize(nodes, V3::zeros());
+        scratch.self_longest.clear();
+        scratch.self_longest.resize(nodes, T::zero());
+        if c.friction > T::zero() {
+            for (k, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
+                let (a, b) = (k.a as usize, k.b as usize);
+                if let Some(dw) = friction_change(&x[a], &x[b], &v[a], &v[b], k.rest, model) {
+                    let half = dw * T::of(0.5);
+                    scratch.friction[a] -= half;
+                    scratch.friction[b] += half;
+                }
             }
-        }
-    }
-    // Each node's self-contact changes, in pair order.
-    for list in &mut scratch.self_friction {
-        list.clear();
-    }
-    scratch.self_friction.resize_with(x.len(), Vec::new);
-    if yarn_friction {
-        let reach = T::of(2.0 * model.contact_rule().radius());
-        for &[a, b] in pairs {
-            let nodes = [a as usize, segment_end(model, a as usize), b as usize, segment_end(model, b as usize)];
-            if let Some(dv) = self_contact_friction(nodes.map(|i| &x[i]), nodes.map(|i| &v[i]), reach, c) {
-                for (i, dv) in nodes.into_iter().zip(dv) {
-                    scratch.self_friction[i].push(dv);
+            let reach = T::of(2.0 * model.contact_rule().radius());
+            for &[a, b] in pairs {
+                let ends = [a as usize, segment_end(model, a as usize), b as usize, segment_end(model, b as usize)];
+                if let Some(dv) = self_contact_friction(ends.map(|i| &x[i]), ends.map(|i| &v[i]), reach, c) {
+                    for (i, dv) in ends.into_iter().zip(dv) {
+                        scratch.self_friction[i] += dv;
+                        scratch.self_longest[i] = scratch.self_longest[i].max(dv.norm());
+                    }
                 }
             }
         }
-    }
-    let radius = T::of(model.contact_rule().radius());
-    for (i, v) in v.iter_mut().enumerate() {
-        let v_star = *v;
-        *v += scratch.friction[i];
-        *v += capped_sum(scratch.self_friction[i].iter().copied());
-        if !model.surfaces().is_empty() {
-            *v += collider_friction(model.surfaces(), &x[i], &v_star, radius, c.collider_impulse);
+        let radius = T::of(model.contact_rule().radius());
+        for (i, v) in v.iter_mut().enumerate() {
+            let v_star = *v;
+            *v += scratch.friction[i];
+            *v += cap(scratch.self_friction[i], scratch.self_longest[i]);
+            if !surfaces.is_empty() {
+                *v += collider_friction(surfaces, &x[i], &v_star, radius, c.collider_impulse);
+            }
         }
     }
     for (x, v) in state.positions.iter_mut().zip(&state.velocities) {

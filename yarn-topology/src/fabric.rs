@@ -550,6 +550,57 @@ impl Fabric {
         self.wale
     }
 
+    /// The positions laid flat, face up, their lowest point `drop` above
+    /// the floor y = 0: the chart's plane (x along the course, y along the
+    /// wale) turned so that its normal, z, points up. With `fold`, the half
+    /// past the middle of the course is first bent up and over the other
+    /// half round a half-cylinder whose inner face keeps its length, so the
+    /// yarn starts stretched at the bend, never pressed into itself, and
+    /// the two layers start well apart. This is what `yarn-gate drape` and
+    /// the browser demo drop onto a floor.
+    ///
+    /// ```
+    /// use yarn_topology::{Chart, Fabric, Geometry};
+    ///
+    /// let fabric = Fabric::from_chart(&Chart::stockinette(4, 4)?, &Geometry::default())?;
+    /// let laid = fabric.laid_flat(false, 2.0);
+    /// let lowest = laid.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+    /// assert!((lowest - 2.0).abs() < 1e-9);
+    /// # Ok::<(), yarn_topology::TopologyError>(())
+    /// ```
+    pub fn laid_flat(&self, fold: bool, drop: f64) -> Vec<Vec3> {
+        let r = self.yarn_radius;
+        let (lo, hi) = self
+            .positions
+            .iter()
+            .fold((Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
+        let middle = 0.5 * (lo.x + hi.x);
+        let (mid, thickness) = (0.5 * (lo.z + hi.z), hi.z - lo.z);
+        // The inner face of the fold keeps its length, so the bend only
+        // stretches yarn (compressed, it would start pressed into itself);
+        // an inner radius of twice the thickness stretches the outer face
+        // by half.
+        let inner = 2.0 * thickness + 2.0 * r;
+        let bend = inner + 0.5 * thickness;
+        let folded = |p: &Vec3| -> Vec3 {
+            let along = p.x - middle;
+            if !fold || along <= 0.0 {
+                return *p;
+            }
+            // Round a half-cylinder about the line x = middle,
+            // z = mid + bend, then flat back over the first half.
+            let angle = (along / inner).min(std::f64::consts::PI);
+            let past = (along - inner * std::f64::consts::PI).max(0.0);
+            let radius = bend - (p.z - mid);
+            Vec3::new(middle + radius * angle.sin() - past, p.y, mid + bend - radius * angle.cos())
+        };
+        // (x, y, z) → (x, z, −y): the chart's normal becomes up.
+        let laid: Vec<Vec3> = self.positions.iter().map(folded).map(|p| Vec3::new(p.x, p.z, -p.y)).collect();
+        let lowest = laid.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+        let lift = Vec3::new(0.0, drop - lowest, 0.0);
+        laid.into_iter().map(|p| p + lift).collect()
+    }
+
     /// `(width, height)` in stitches for a fabric generated from a chart.
     pub fn grid(&self) -> Option<(usize, usize)> {
         match self.grid.as_ref()? {

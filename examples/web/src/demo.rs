@@ -1,13 +1,13 @@
 //! The demo's state and actions, independent of the browser: a fabric on the
 //! GPU backend, the camera, the pins that grabbing, gravity and unravelling
-//! hold, and the contact-release schedules.
+//! hold, the floor it may be dropped on, and the contact-release schedules.
 
 use std::future::Future;
 use std::sync::Arc;
 
 use serde::Serialize;
 use yarn_backend_wgpu::{Gpu, Mode, Wgpu, wgpu};
-use yarn_model::{Backend, BackendError, Params, V3};
+use yarn_model::{Backend, BackendError, Collider, Params, Plane, State, V3};
 use yarn_render::{RenderError, Renderer, View, Yarn};
 use yarn_topology::{Fabric, Geometry, Pattern, Pin, Side, StitchKind, TopologyError, Vec3};
 
@@ -17,7 +17,8 @@ pub const OFFSCREEN_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unor
 
 /// The names [`Demo::set`] takes: the numeric settings. The pattern is set
 /// by name, with [`Demo::set_pattern`].
-pub const SETTINGS: &str = "stretch, bend, curl, contact, friction, damping, gravity, substeps, width, height";
+pub const SETTINGS: &str =
+    "stretch, bend, curl, contact, friction, self-contact, damping, gravity, floor, substeps, width, height";
 
 /// Frames between two contact releases while unravelling or laddering.
 const FRAMES_PER_RELEASE: u64 = 2;
@@ -27,6 +28,14 @@ const PULL: f64 = 3.0;
 const PULL_PER_FRAME: f64 = 0.05;
 /// Gravity when it is on, in model units per s² (as the drape example).
 const GRAVITY: f64 = 9.81;
+/// How high above the floor the patch starts when dropped on it, in yarn
+/// radii: with the default damping it falls at about g/β, 1 a second, so a
+/// short drop lands in a couple of seconds.
+const DROP: f64 = 3.0;
+/// The self-contact stiffness k_sc the floor turns on where it is off:
+/// `yarn-gate drape`'s, so a patch dropped on the floor keeps its loops
+/// apart.
+const SELF_CONTACT: f64 = 1600.0;
 /// The farthest from the cursor a grab reaches, in pixels.
 const GRAB_RADIUS: f32 = 40.0;
 /// Patch sides, in stitches.
@@ -45,6 +54,9 @@ pub struct Settings {
     pub substeps_per_frame: u32,
     /// Gravity on, with the top row held (default: off).
     pub gravity: bool,
+    /// A floor under the patch, which is laid flat above it and dropped
+    /// under gravity, nothing held, with self-contact on (default: off).
+    pub floor: bool,
     /// The knit-purl pattern the patch is knitted in (default:
     /// stockinette, the plain knit the model was fitted to).
     pub pattern: Pattern,
@@ -59,6 +71,7 @@ impl Default for Settings {
             height: 16,
             substeps_per_frame: 22,
             gravity: false,
+            floor: false,
             pattern: Pattern::Stockinette,
             params: Params::default(),
         }
@@ -122,6 +135,8 @@ pub struct Status {
     pub unravelling: bool,
     /// A dropped stitch is laddering down a wale.
     pub laddering: bool,
+    /// The patch was dropped on the floor.
+    pub floor: bool,
 }
 
 /// A node held by the cursor.
@@ -150,6 +165,8 @@ pub struct Demo {
     renderer: Renderer,
     settings: Settings,
     fabric: Fabric,
+    /// Where the patch started: as knitted, or laid flat above the floor.
+    start: Vec<Vec3>,
     /// Purl stitches in the fabric's chart.
     purls: usize,
     yarn: Yarn,
@@ -172,7 +189,7 @@ impl Demo {
     pub fn new(gpu: Arc<Gpu>, format: wgpu::TextureFormat, settings: Settings) -> Result<Self, DemoError> {
         let renderer = Renderer::for_format(&gpu, format);
         let mut backend = Wgpu::with_gpu(gpu, Mode::Gather);
-        let (fabric, purls, yarn) = load(&mut backend, &renderer, &settings)?;
+        let Loaded { fabric, start, purls, yarn } = load(&mut backend, &renderer, &settings)?;
         let alive = vec![true; fabric.contacts().len()];
         let view = View { orbit: 0.35, elevation: 0.45, ..View::default() };
         Ok(Self {
@@ -180,6 +197,7 @@ impl Demo {
             renderer,
             settings,
             fabric,
+            start,
             purls,
             yarn,
             view,
@@ -202,7 +220,7 @@ impl Demo {
 
     /// Load a fresh patch for `settings`, committing them only if it loads.
     fn reload(&mut self, settings: Settings) -> Result<(), DemoError> {
-        let (fabric, purls, yarn) = match load(&mut self.backend, &self.renderer, &settings) {
+        let loaded = match load(&mut self.backend, &self.renderer, &settings) {
             Ok(loaded) => loaded,
             Err(e) => {
                 // The backend may have let go of the old fabric: put it back.
@@ -211,15 +229,19 @@ impl Demo {
                 return Err(e);
             }
         };
-        self.alive = vec![true; fabric.contacts().len()];
-        (self.settings, self.fabric, self.purls, self.yarn) = (settings, fabric, purls, yarn);
+        self.alive = vec![true; loaded.fabric.contacts().len()];
+        let Loaded { fabric, start, purls, yarn } = loaded;
+        (self.settings, self.fabric, self.start, self.purls, self.yarn) = (settings, fabric, start, purls, yarn);
         (self.grab, self.release, self.pull, self.frames, self.substeps) = (None, None, 0.0, 0, 0);
         self.upload_pins()
     }
 
     /// Change one setting by name (see [`SETTINGS`]): the model parameters
     /// `stretch` (k_s), `bend` (k_b), `curl` (κ), `contact` (k_c),
-    /// `friction` (μ), `damping` (β); `gravity` (0 off, else on);
+    /// `friction` (μ), `self-contact` (k_sc, 0 off), `damping` (β);
+    /// `gravity` (0 off, else on); `floor` (0 off, else on: the patch is
+    /// laid flat above a floor and dropped on it, which reloads it and
+    /// turns self-contact on at 1,600 where it is off);
     /// `substeps` per frame; the patch's `width` and `height`, which
     /// reload it. The pattern is a name: see [`Demo::set_pattern`].
     ///
@@ -236,10 +258,19 @@ impl Demo {
             "curl" => params.rest_curl = value,
             "contact" => params.contact_stiffness = value,
             "friction" => params.friction = value,
+            "self-contact" => params.self_contact_stiffness = value,
             "damping" => params.damping = value,
             "gravity" => {
                 settings.gravity = value != 0.0;
-                params.gravity = if settings.gravity { GRAVITY } else { 0.0 };
+                settings.params.gravity = gravity_of(&settings);
+            }
+            "floor" => {
+                settings.floor = value != 0.0;
+                settings.params.gravity = gravity_of(&settings);
+                if settings.floor && settings.params.self_contact_stiffness == 0.0 {
+                    settings.params.self_contact_stiffness = SELF_CONTACT;
+                }
+                return self.reload(settings);
             }
             "substeps" => {
                 settings.substeps_per_frame =
@@ -273,14 +304,10 @@ impl Demo {
             "curl" => params.rest_curl,
             "contact" => params.contact_stiffness,
             "friction" => params.friction,
+            "self-contact" => params.self_contact_stiffness,
             "damping" => params.damping,
-            "gravity" => {
-                if settings.gravity {
-                    1.0
-                } else {
-                    0.0
-                }
-            }
+            "gravity" => f64::from(u8::from(settings.gravity)),
+            "floor" => f64::from(u8::from(settings.floor)),
             "substeps" => f64::from(settings.substeps_per_frame),
             "width" => settings.width as f64,
             "height" => settings.height as f64,
@@ -463,20 +490,22 @@ impl Demo {
             grabbed: self.grab.map(|g| g.node),
             unravelling: self.release.as_ref().is_some_and(|r| r.unravel),
             laddering: self.release.as_ref().is_some_and(|r| !r.unravel),
+            floor: self.settings.floor,
         }
     }
 
     /// Send the pins of the current actions to the backend: the top row
-    /// under gravity, or the cast-on row and the pulled loose end while
-    /// unravelling; and the grabbed node.
+    /// under gravity (unless the patch was dropped on the floor), or the
+    /// cast-on row and the pulled loose end while unravelling; and the
+    /// grabbed node.
     fn upload_pins(&mut self) -> Result<(), DemoError> {
-        let rest = self.fabric.positions();
+        let rest = &self.start;
         let held =
             |side| self.fabric.side_nodes(side).into_iter().map(|node| Pin { node, target: rest[node as usize] });
         let unravelling = self.release.as_ref().is_some_and(|r| r.unravel);
         let mut pins: Vec<Pin> = if unravelling {
             held(Side::Bottom).collect()
-        } else if self.settings.gravity {
+        } else if self.settings.gravity && !self.settings.floor {
             held(Side::Top).collect()
         } else {
             Vec::new()
@@ -497,15 +526,40 @@ impl Demo {
     }
 }
 
-/// Build the fabric for `settings` and load it into `backend`; with it, the
-/// number of purl stitches in its chart.
-fn load(backend: &mut Wgpu, renderer: &Renderer, settings: &Settings) -> Result<(Fabric, usize, Yarn), DemoError> {
+/// The gravity of `settings`: on when it is set or the patch lies on the
+/// floor.
+fn gravity_of(settings: &Settings) -> f64 {
+    if settings.gravity || settings.floor { GRAVITY } else { 0.0 }
+}
+
+/// A patch just loaded.
+struct Loaded {
+    fabric: Fabric,
+    /// Its positions as loaded.
+    start: Vec<Vec3>,
+    /// Purl stitches in its chart.
+    purls: usize,
+    yarn: Yarn,
+}
+
+/// Build the fabric for `settings` and load it into `backend`, laid flat
+/// above a floor at y = 0 when the settings have one.
+fn load(backend: &mut Wgpu, renderer: &Renderer, settings: &Settings) -> Result<Loaded, DemoError> {
     let chart = settings.pattern.chart(settings.width, settings.height)?;
     let fabric = Fabric::from_chart(&chart, &Geometry::default())?;
     backend.load(&fabric, &settings.params)?;
-    let rest: Vec<[f32; 3]> = fabric.positions().iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
-    let yarn = renderer.yarn(&rest, fabric.yarns(), fabric.yarn_radius() as f32)?;
-    Ok((fabric, chart.count(StitchKind::Purl), yarn))
+    let start = if settings.floor {
+        backend.set_colliders(&[Collider::Plane(Plane::floor(0.0))])?;
+        let laid = fabric.laid_flat(false, DROP * fabric.yarn_radius());
+        let positions: Vec<V3<f32>> = laid.iter().map(|p| p.cast()).collect();
+        backend.write_state(&State { velocities: vec![V3::zeros(); positions.len()], positions })?;
+        laid
+    } else {
+        fabric.positions().to_vec()
+    };
+    let at: Vec<[f32; 3]> = start.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
+    let yarn = renderer.yarn(&at, fabric.yarns(), fabric.yarn_radius() as f32)?;
+    Ok(Loaded { purls: chart.count(StitchKind::Purl), fabric, start, yarn })
 }
 
 /// Every pattern name, comma separated, for messages.

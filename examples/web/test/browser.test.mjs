@@ -25,7 +25,9 @@ const WEBGPU = [
 ];
 const VIEWPORT = { width: 1000, height: 700 };
 // Every number the page has a control for, and so reads from the address.
-const SETTINGS = ['stretch', 'bend', 'curl', 'contact', 'friction', 'damping', 'substeps', 'gravity', 'width', 'height'];
+const SETTINGS = [
+  'stretch', 'bend', 'curl', 'contact', 'friction', 'self-contact', 'damping', 'substeps', 'gravity', 'floor', 'width', 'height',
+];
 // Every pattern, in the selector's order (yarn-topology's Pattern::ALL).
 const PATTERNS = ['stockinette', 'reverse-stockinette', 'garter', 'rib-1x1', 'rib-2x2', 'seed'];
 // Nodes in a w x h patch of the default interlooped geometry: 24 a loop,
@@ -269,7 +271,10 @@ test('a bad pattern in the address is refused by name and the default kept', asy
 });
 
 test('settings in the address start the page there', async () => {
-  const given = { stretch: 500, bend: 2.5, curl: 0.2, contact: 400, friction: 0, damping: 20, substeps: 5, gravity: 1, width: 6, height: 4 };
+  const given = {
+    stretch: 500, bend: 2.5, curl: 0.2, contact: 400, friction: 0, 'self-contact': 800, damping: 20, substeps: 5, gravity: 1,
+    floor: 0, width: 6, height: 4,
+  };
   assert.deepEqual(Object.keys(given).sort(), [...SETTINGS].sort());
   const search = `?${new URLSearchParams([...Object.entries(given).map(([k, v]) => [k, String(v)]), ['pattern', 'seed']])}`;
   const { page: opened, context, errors } = await open(search);
@@ -311,6 +316,30 @@ test('settings in the address start the page there', async () => {
     const most = Math.max(...nodes.map(moved));
     console.log(`over ${later.frames - state.frames} frames the top row moved at most ${top}, the patch up to ${most.toFixed(3)}`);
     assert.ok(top < 1e-4 && most > 0.1, `the top row moved ${top}, the patch up to ${most}`);
+    assert.deepEqual(errors, []);
+  } finally {
+    await context.close();
+  }
+});
+
+test('the floor checkbox drops the patch onto a floor, which it lands on and does not pass', async () => {
+  const { page: opened, context, errors } = await open('?width=6&height=4&substeps=40');
+  try {
+    await opened.click('#floor');
+    const state = await opened.evaluate(() => window.yarnify.status());
+    assert.equal(state.floor, true);
+    const start = await opened.evaluate(() => window.yarnify.positions());
+    const lowest = (p) => Math.min(...p.filter((_, i) => i % 3 === 1));
+    await opened.waitForFunction((n) => window.yarnify.status().frames >= n, state.frames + 100, { timeout: 180_000 });
+    const later = await opened.evaluate(() => window.yarnify.positions());
+    // Laid flat above the floor y = 0, it falls and comes to lie on it:
+    // every centreline ends near a yarn radius (0.9) above it, none below.
+    console.log(`the lowest node fell from ${lowest(start).toFixed(3)} to ${lowest(later).toFixed(3)}`);
+    assert.ok(lowest(start) > 2, `the patch started ${lowest(start)} above the floor`);
+    assert.ok(lowest(later) > 0.4 && lowest(later) < 1.5, `the lowest node ended ${lowest(later)} above the floor`);
+    // Unchecked, the patch stands as knitted again, off the floor.
+    await opened.click('#floor');
+    assert.equal((await opened.evaluate(() => window.yarnify.status())).floor, false);
     assert.deepEqual(errors, []);
   } finally {
     await context.close();

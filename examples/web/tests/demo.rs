@@ -196,7 +196,8 @@ fn bad_settings_are_refused_by_name_and_change_nothing() {
     let mut refused = |name: &str, value: f64| demo.set(name, value).expect_err(name).to_string();
     assert_eq!(
         refused("knitting", 1.0),
-        "unknown setting `knitting`; the settings are: stretch, bend, curl, contact, friction, damping, gravity, substeps, width, height"
+        "unknown setting `knitting`; the settings are: stretch, bend, curl, contact, friction, self-contact, damping, gravity, floor, \
+         substeps, width, height"
     );
     assert_eq!(refused("substeps", 0.0), "substeps = 0 is outside the whole numbers 1..=500");
     assert_eq!(refused("substeps", 501.0), "substeps = 501 is outside the whole numbers 1..=500");
@@ -288,8 +289,10 @@ fn every_setting_takes_effect_and_reads_back() {
         ("curl", 0.2),
         ("contact", 400.0),
         ("friction", 0.0),
+        ("self-contact", 800.0),
         ("damping", 20.0),
         ("gravity", 1.0),
+        ("floor", 1.0),
         ("substeps", 5.0),
         ("width", 6.0),
         ("height", 4.0),
@@ -302,6 +305,8 @@ fn every_setting_takes_effect_and_reads_back() {
         assert_eq!(demo.setting(name).expect(name), value, "{name}");
     }
     assert!(matches!(demo.setting("knitting"), Err(DemoError::UnknownSetting(_))));
+    assert_eq!(demo.settings().params.self_contact_stiffness, 800.0);
+    demo.set("floor", 0.0).expect("floor off");
     let settings = demo.settings();
     assert_eq!((settings.params.rest_curl, settings.params.gravity), (0.2, 9.81));
     assert_eq!(demo.status().nodes, nodes(6, 4));
@@ -324,4 +329,52 @@ fn every_setting_takes_effect_and_reads_back() {
     println!("in 40 frames gravity hung the bottom row {sag:.3} lower on average; the top row moved at most {top:.5}");
     assert!(sag > 0.02, "gravity hung the bottom row only {sag} lower");
     assert!(top < 0.1 * sag, "the top row, held, moved {top}");
+}
+
+/// The floor: checked, the patch is laid flat three yarn radii above it and
+/// falls under gravity, nothing held, with self-contact on, until it lies
+/// on it; no node goes under it and no two segments of yarn come closer
+/// than 1.9 r. Unchecked, the patch stands as knitted again.
+#[test]
+fn a_patch_dropped_on_the_floor_lands_on_it_and_never_passes_it() {
+    let Some((_, mut demo)) = demo() else { return };
+    demo.set("width", 4.0).expect("width");
+    demo.set("height", 4.0).expect("height");
+    demo.set("substeps", 40.0).expect("substeps");
+    demo.set("floor", 1.0).expect("floor on");
+    let status = demo.status();
+    assert!(status.floor && !status.unravelling);
+    assert_eq!((demo.settings().params.gravity, demo.settings().params.self_contact_stiffness), (9.81, 1600.0));
+    let r = demo.fabric().yarn_radius() as f32;
+    let lowest = |p: &[[f32; 3]]| p.iter().map(|p| p[1]).fold(f32::INFINITY, f32::min);
+    let start = positions(&demo);
+    assert!((lowest(&start) - 3.0 * r).abs() < 1e-4, "laid {} above the floor", lowest(&start));
+    let model = yarn_model::Model::<f32>::new(demo.fabric(), &demo.settings().params).expect("model");
+    let mut low = f32::INFINITY;
+    let mut closest = f64::INFINITY;
+    for _ in 0..10 {
+        steps(&mut demo, 10);
+        let at = positions(&demo);
+        low = low.min(lowest(&at));
+        let x: Vec<yarn_model::V3<f32>> = at.iter().map(|p| yarn_model::V3::new(p[0], p[1], p[2])).collect();
+        if let Some((d, _)) = yarn_model::self_contact::closest_approach(&model, &x, 4.0) {
+            closest = closest.min(d);
+        }
+    }
+    let end = lowest(&positions(&demo));
+    println!(
+        "the lowest node fell from {:.3} to {end:.3} ({low:.3} at its lowest); closest approach {closest:.3} r",
+        lowest(&start)
+    );
+    assert!(end < 1.5 * r && low > 0.5 * r, "it ended {end} above the floor, and went down to {low}");
+    assert!(closest > 1.9, "two segments came {closest} r apart");
+    demo.set("floor", 0.0).expect("floor off");
+    assert!(!demo.status().floor);
+    assert_eq!(positions(&demo)[0], start_of(&demo));
+}
+
+/// Node 0 as knitted.
+fn start_of(demo: &Demo) -> [f32; 3] {
+    let p = demo.fabric().positions()[0];
+    [p.x as f32, p.y as f32, p.z as f32]
 }

@@ -16,11 +16,13 @@ const CONTROLS = {
     ['curl', 'rest curl κ', 0, 1, 0.01, 0.55],
     ['contact', 'contact k<sub>c</sub>', 20, 1000, 10, 250],
     ['friction', 'friction μ', 0, 1, 0.01, 0.3],
+    ['self-contact', 'self-contact k<sub>sc</sub> (0 off)', 0, 3200, 50, 0],
   ],
   solver: [
     ['damping', 'damping β (1/s)', 0, 50, 0.5, 10],
     ['substeps', 'substeps per frame', 1, 100, 1, 22],
     ['gravity', 'gravity (top row held)', 0, 1, 1, 0],
+    ['floor', 'floor (drop the patch on it)', 0, 1, 1, 0],
   ],
   patch: [
     ['width', 'width (stitches)', 4, 64, 1, 16],
@@ -82,15 +84,19 @@ function buildPatternSelect(app, rebuilt) {
   });
 }
 
+// The on/off settings, drawn as checkboxes.
+const CHECKBOXES = ['gravity', 'floor'];
+
 // `rebuilt` runs after a change that built a fresh patch (its size or
-// pattern).
+// pattern, or the floor it was dropped on).
 function buildControls(app, rebuilt) {
   buildPatternSelect(app, rebuilt);
   for (const [group, rows] of Object.entries(CONTROLS)) {
     const fieldset = document.getElementById(group);
     for (const [name, text, min, max, step, value] of rows) {
       const label = document.createElement('label');
-      const checkbox = name === 'gravity';
+      const checkbox = CHECKBOXES.includes(name);
+      const rebuilds = group === 'patch' || name === 'floor';
       label.innerHTML = `<span>${text}</span>` + (checkbox
         ? `<input type="checkbox" id="${name}">`
         : `<output id="${name}-value">${value}</output>` +
@@ -104,7 +110,7 @@ function buildControls(app, rebuilt) {
         try {
           app.set(name, Number(given));
           last = Number(given);
-          if (group === 'patch') rebuilt();
+          if (rebuilds) rebuilt();
           if (checkbox) input.checked = last !== 0; else input.value = last;
           if (!checkbox) label.querySelector('output').textContent = String(last);
         } catch (e) {
@@ -116,7 +122,7 @@ function buildControls(app, rebuilt) {
         try {
           app.set(name, v);
           last = v;
-          if (group === 'patch') rebuilt();
+          if (rebuilds) rebuilt();
           delete statusLine.dataset.error;
         } catch (e) {
           showError(String(e.message ?? e));

@@ -288,12 +288,8 @@ impl<T: Real> CpuFabric<T> {
             force.set(i, f);
         }
         if self.model.self_contact() {
-            for i in lo..hi {
-                let mut slots = self.touching.active_slots_of(i).peekable();
-                if slots.peek().is_some() {
-                    let f = slots.fold(force.get(i - lo), |f, s| f + self.touching.force.get(s));
-                    force.set(i - lo, f);
-                }
+            for (i, link) in self.model.links()[lo..hi].iter().enumerate() {
+                force.set(i, self.touching.force_at(lo + i, link.prev(), force.get(i)));
             }
         }
         let surfaces = self.model.surfaces();
@@ -526,7 +522,7 @@ impl<T: Real> CpuFabric<T> {
                 }
                 if self_friction {
                     for j in 0..x.x.len() {
-                        if let Some(dv) = this.touching.friction_at(lo + j) {
+                        if let Some(dv) = this.touching.friction_at(lo + j, this.model.links()[lo + j].prev()) {
                             (v.x[j], v.y[j], v.z[j]) = (v.x[j] + dv.x, v.y[j] + dv.y, v.z[j] + dv.z);
                         }
                     }

@@ -8,18 +8,22 @@
 //! two passes over the pairs: *pair forces* (each pair's force on its four
 //! nodes, into its four slots) and *pair friction* (each pair's friction
 //! change and its nodes' shares, from x and v*). Each node then gathers its
-//! slots in pair order, in the block pass and the move pass, so no node is
-//! written by two threads and the sum does not depend on the thread count
-//! or on when the list was built (pairs out of reach add exactly zero).
-//! The collider terms are per node and run inside those two passes.
+//! slots in the block pass and the move pass: first those of the segment
+//! it starts, then those of the segment it ends, each in the order of the
+//! partner segments. That is the order of the GPU's gather, which keeps a
+//! sorted list per segment, so `Serial<f32>` and `wgpu` agree bit for bit.
+//! No node is written by two threads, and the sum does not depend on the
+//! thread count or on when the list was built (pairs out of reach add
+//! exactly zero). The collider terms are per node and run inside those two
+//! passes.
 //!
-//! This module owns the list, its incidence and the per-pair arithmetic;
-//! `passes.rs` runs the passes.
+//! This module owns the list, its per-segment entries and the per-pair
+//! arithmetic; `passes.rs` runs the passes.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use yarn_model::self_contact::find_pairs;
-use yarn_model::step::{capped_sum, segment_end, self_contact_friction};
+use yarn_model::step::{cap, segment_end, self_contact_friction};
 use yarn_model::terms::{closest_gap, self_contact_forces};
 use yarn_model::{Model, Real, V3};
 
@@ -48,10 +52,11 @@ pub(crate) struct SelfContacts<T> {
     /// [`Model::revision`] at the last build (0: never built).
     revision: u64,
     builds: u64,
-    /// Node i's slots (4 × pair + k) are `slots[start[i]..start[i + 1]]`,
-    /// in pair order.
+    /// Segment s's entries are `entries[start[s]..start[s + 1]]`, in the
+    /// order of its partners: each the slot (4 × pair + k) of the node s
+    /// starts at; the node it ends at has the next slot.
     start: Vec<u32>,
-    slots: Vec<u32>,
+    entries: Vec<u32>,
     /// Per slot: the pair's force on that node, and its friction change.
     pub(crate) force: Field<T>,
     pub(crate) friction: Field<T>,
@@ -100,20 +105,23 @@ impl<T: Real> SelfContacts<T> {
             .iter()
             .map(|&[a, b]| [a, segment_end(model, a as usize) as u32, b, segment_end(model, b as usize) as u32])
             .collect();
+        // Pairs are sorted by (a, b), so each segment meets the partners
+        // before it (as b) and then those after it (as a), each in order.
         let mut start = vec![0u32; x.len() + 1];
-        for nodes in &self.nodes {
-            for &i in nodes {
-                start[i as usize + 1] += 1;
-            }
+        for &[a, b] in &pairs {
+            start[a as usize + 1] += 1;
+            start[b as usize + 1] += 1;
         }
         for i in 0..x.len() {
             start[i + 1] += start[i];
         }
         let mut fill = start.clone();
-        self.slots = vec![0; self.nodes.len() * 4];
-        for (slot, &i) in self.nodes.iter().flatten().enumerate() {
-            self.slots[fill[i as usize] as usize] = slot as u32;
-            fill[i as usize] += 1;
+        self.entries = vec![0; pairs.len() * 2];
+        for (pair, &[a, b]) in pairs.iter().enumerate() {
+            for (segment, slot) in [(a, 4 * pair), (b, 4 * pair + 2)] {
+                self.entries[fill[segment as usize] as usize] = slot as u32;
+                fill[segment as usize] += 1;
+            }
         }
         self.start = start;
         self.built_gap = self
@@ -144,10 +152,31 @@ impl<T: Real> SelfContacts<T> {
         self.builds
     }
 
-    /// Node `i`'s slots of pairs that push, in pair order.
-    pub(crate) fn active_slots_of(&self, i: usize) -> impl Iterator<Item = usize> + '_ {
-        let slots = self.start.get(i + 1).map_or(&[][..], |&end| &self.slots[self.start[i] as usize..end as usize]);
-        slots.iter().map(|&s| s as usize).filter(|&s| self.active[s / 4])
+    /// Segment `s`'s entries (`None`: no segment), in partner order.
+    fn entries_of(&self, s: Option<u32>) -> &[u32] {
+        let Some(s) = s.map(|s| s as usize) else { return &[] };
+        self.start.get(s + 1).map_or(&[], |&end| &self.entries[self.start[s] as usize..end as usize])
+    }
+
+    /// The slots of the pushing pairs at node `i`: as the start of its own
+    /// segment, then as the end of the segment before it (`prev`), each in
+    /// partner order.
+    fn slots_at(&self, i: usize, prev: Option<u32>) -> [impl Iterator<Item = usize> + '_; 2] {
+        let pushing = move |segment: Option<u32>, node: usize| {
+            let entries = self.entries_of(segment).iter();
+            entries.filter_map(move |&slot| self.active[slot as usize / 4].then_some(slot as usize + node))
+        };
+        [pushing(Some(i as u32), 0), pushing(prev, 1)]
+    }
+
+    /// The self-contact force at node `i` added to `f`: the pushing pairs
+    /// of the segment it starts, summed, then those of the segment it ends
+    /// (`prev`). `f` itself where none pushes.
+    pub(crate) fn force_at(&self, i: usize, prev: Option<u32>, f: V3<T>) -> V3<T> {
+        self.slots_at(i, prev).into_iter().fold(f, |f, mut slots| match slots.next() {
+            Some(first) => f + slots.fold(self.force.get(first), |sum, s| sum + self.force.get(s)),
+            None => f,
+        })
     }
 
     /// The force of pairs block `block` on their nodes, into `out`
@@ -214,11 +243,21 @@ impl<T: Real> SelfContacts<T> {
         }
     }
 
-    /// The friction change at node `i`: its pushing pairs' changes in pair
-    /// order, [`capped_sum`]med; `None` where no pair pushes it.
-    pub(crate) fn friction_at(&self, i: usize) -> Option<V3<T>> {
-        let mut slots = self.active_slots_of(i).peekable();
-        slots.peek()?;
-        Some(capped_sum(slots.map(|s| self.friction.get(s))))
+    /// The friction change at node `i`: the changes of its pushing pairs,
+    /// summed over the segment it starts and then over the one it ends
+    /// (`prev`), the sum [`cap`]ped to the longest change; `None` where no
+    /// pair pushes it.
+    pub(crate) fn friction_at(&self, i: usize, prev: Option<u32>) -> Option<V3<T>> {
+        let mut total: Option<(V3<T>, T)> = None;
+        for mut slots in self.slots_at(i, prev) {
+            let Some(first) = slots.next() else { continue };
+            let dv = self.friction.get(first);
+            let (sum, longest) = slots.fold((dv, dv.norm()), |(sum, longest), s| {
+                let dv = self.friction.get(s);
+                (sum + dv, longest.max(dv.norm()))
+            });
+            total = Some(total.map_or((sum, longest), |(t, l)| (t + sum, l.max(longest))));
+        }
+        total.map(|(sum, longest)| cap(sum, longest))
     }
 }

@@ -24,7 +24,7 @@
 //! the list always holds every pair within 2r, and the pairs beyond it add
 //! exactly zero: the forces do not depend on when the list was built.
 
-use std::collections::HashSet;
+pub mod grid;
 
 use crate::terms::closest_gap;
 use crate::{Model, Real, V3, widen};
@@ -42,39 +42,59 @@ pub const NEAR_ALONG_YARN: f64 = std::f64::consts::PI;
 /// (2r) to crossing, and the contact acts in each.
 pub const MAX_STEP_RADII: f64 = 0.5;
 
-/// Which segment pairs of a fabric may touch, fixed when it is loaded:
-/// each node's yarn and rest arc position along it.
+/// Which segment pairs of a fabric may touch, fixed when it is loaded: per
+/// segment, how many segments after it along its yarn are near it.
+///
+/// Nearness is counted in whole segments, computed once in `f64` from the
+/// rest lengths, so every backend, in any precision and on the GPU, makes
+/// the same decision for the same pair.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactRule {
     /// The yarn radius r.
     radius: f64,
     /// Per node: its yarn's index.
     yarn: Vec<u32>,
-    /// Per node: rest arc length from its yarn's first node.
-    arc: Vec<f64>,
-    /// Per node: rest length of the segment it starts (0 where none).
-    length: Vec<f64>,
-    /// Per yarn: its whole rest length when closed, infinite when open.
-    around: Vec<f64>,
+    /// Per node a that starts a segment: the largest k such that the
+    /// segment k steps after it along its yarn starts within
+    /// [`NEAR_ALONG_YARN`] radii of rest arc length of a's end (round a
+    /// closed yarn's wrap, short of a itself); 0 where none does.
+    ahead: Vec<u32>,
+    /// The yarns.
+    spans: Vec<yarn_topology::YarnSpan>,
 }
 
 impl ContactRule {
     /// The rule for a fabric of `radius` whose yarns are `spans`, with the
-    /// rest length of each node's segment in `segment_rest`.
+    /// rest length of each node's segment in `segment_rest` (0 where no
+    /// segment leaves the node).
     pub(crate) fn new(radius: f64, spans: &[yarn_topology::YarnSpan], segment_rest: &[f64]) -> Self {
         let nodes = segment_rest.len();
-        let (mut yarn, mut arc) = (vec![0; nodes], vec![0.0; nodes]);
-        let mut around = Vec::with_capacity(spans.len());
+        let (mut yarn, mut ahead) = (vec![0; nodes], vec![0; nodes]);
+        let near = NEAR_ALONG_YARN * radius;
         for (y, span) in spans.iter().enumerate() {
-            let mut at = 0.0;
-            for i in span.nodes() {
-                yarn[i] = y as u32;
-                arc[i] = at;
-                at += segment_rest[i];
+            let (start, len) = (span.start as usize, span.len());
+            // The node k steps after `a` along the yarn, if the yarn goes on.
+            let step = |a: usize, k: usize| {
+                let at = a - start + k;
+                if span.closed { Some(start + at % len) } else { (at < len).then_some(start + at) }
+            };
+            for a in span.nodes() {
+                yarn[a] = y as u32;
+                // The rest arc between a's end and the start of the segment
+                // k steps on: the segments strictly between.
+                let mut between = 0.0;
+                for k in 1..len {
+                    match step(a, k) {
+                        Some(b) if segment_rest[b] > 0.0 && between < near => {
+                            ahead[a] = k as u32;
+                            between += segment_rest[b];
+                        }
+                        _ => break,
+                    }
+                }
             }
-            around.push(if span.closed { at } else { f64::INFINITY });
         }
-        Self { radius, yarn, arc, length: segment_rest.to_vec(), around }
+        Self { radius, yarn, ahead, spans: spans.to_vec() }
     }
 
     /// The yarn radius r; segments touch below 2r.
@@ -82,37 +102,99 @@ impl ContactRule {
         self.radius
     }
 
-    /// Whether segments `a` and `b` (`a` < `b`) lie within
-    /// [`NEAR_ALONG_YARN`] radii of each other along one yarn, the long
-    /// way round a closed yarn included.
+    /// Per node a: how many segments after it along its yarn are near it
+    /// ([`ContactRule::near_along_yarn`]).
+    pub fn ahead(&self) -> &[u32] {
+        &self.ahead
+    }
+
+    /// The yarn of node `a`.
+    pub fn yarn_of(&self, a: usize) -> yarn_topology::YarnSpan {
+        self.spans[self.yarn[a] as usize]
+    }
+
+    /// Whether segments `a` and `b` lie within [`NEAR_ALONG_YARN`] radii of
+    /// rest arc length of each other along one yarn, the short way round a
+    /// closed yarn: b is at most `ahead[a]` segments after a, or a at most
+    /// `ahead[b]` after b. Two yarns are never near.
     pub fn near_along_yarn(&self, a: usize, b: usize) -> bool {
         if self.yarn[a] != self.yarn[b] {
             return false;
         }
-        let ahead = self.arc[b] - (self.arc[a] + self.length[a]);
-        let around = self.around[self.yarn[a] as usize] - (self.arc[b] + self.length[b]) + self.arc[a];
-        ahead.min(around) < NEAR_ALONG_YARN * self.radius
+        let span = self.yarn_of(a);
+        // Steps from `from` forward to `to` along the yarn, if it gets there.
+        let steps = |from: usize, to: usize| {
+            if to >= from { Some(to - from) } else { span.closed.then(|| to + span.len() - from) }
+        };
+        steps(a, b).is_some_and(|k| k <= self.ahead[a] as usize)
+            || steps(b, a).is_some_and(|k| k <= self.ahead[b] as usize)
     }
 }
 
-/// The segment pairs `[a, b]`, `a` < `b`, that a live persistent contact
-/// joins: each segment touches one of its nodes.
-fn tethered<T: Real>(model: &Model<T>) -> HashSet<[u32; 2]> {
-    let links = model.links();
-    // The segments that touch node i: the one arriving and the one leaving.
-    let touching = |i: u32| {
-        let link = links[i as usize];
-        [link.prev(), link.next().map(|_| i)].into_iter().flatten()
-    };
-    let mut pairs = HashSet::new();
-    for (c, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
-        for a in touching(c.a) {
-            for b in touching(c.b) {
-                pairs.insert([a.min(b), a.max(b)]);
+/// Per segment, the segments a live persistent contact joins it to: each
+/// segment touches one of the contact's two nodes. Their tether already
+/// holds that crossing and applies its friction there, so self-contact
+/// leaves the pair out rather than count it twice.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Tethers {
+    /// Segment a's partners are `partners[start[a]..start[a + 1]]`, sorted.
+    start: Vec<u32>,
+    partners: Vec<u32>,
+}
+
+impl Tethers {
+    /// The tethered pairs of `model`'s alive contacts.
+    pub fn of<T: Real>(model: &Model<T>) -> Self {
+        let links = model.links();
+        // The segments that touch node i: the one arriving and the one leaving.
+        let touching = |i: u32| {
+            let link = links[i as usize];
+            [link.prev(), link.next().map(|_| i)].into_iter().flatten()
+        };
+        let mut lists = vec![Vec::new(); links.len()];
+        for (c, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
+            for a in touching(c.a) {
+                for b in touching(c.b) {
+                    if a != b {
+                        lists[a as usize].push(b);
+                        lists[b as usize].push(a);
+                    }
+                }
             }
         }
+        let mut start = Vec::with_capacity(links.len() + 1);
+        let mut partners = Vec::new();
+        start.push(0);
+        for mut list in lists {
+            list.sort_unstable();
+            list.dedup();
+            partners.extend(list);
+            start.push(partners.len() as u32);
+        }
+        Self { start, partners }
     }
-    pairs
+
+    /// Whether a live contact joins segments `a` and `b`.
+    pub fn contains(&self, a: u32, b: u32) -> bool {
+        self.of_segment(a).binary_search(&b).is_ok()
+    }
+
+    /// Segment `a`'s tethered partners, sorted.
+    pub fn of_segment(&self, a: u32) -> &[u32] {
+        let a = a as usize;
+        self.start.get(a + 1).map_or(&[], |&end| &self.partners[self.start[a] as usize..end as usize])
+    }
+
+    /// The offsets: segment a's partners are
+    /// `partners()[start()[a]..start()[a + 1]]`; one more than the nodes.
+    pub fn start(&self) -> &[u32] {
+        &self.start
+    }
+
+    /// Every segment's partners, in segment order.
+    pub fn partners(&self) -> &[u32] {
+        &self.partners
+    }
 }
 
 /// Every pair of segments `[a, b]`, `a` < `b`, that may touch under the
@@ -120,10 +202,10 @@ fn tethered<T: Real>(model: &Model<T>) -> HashSet<[u32; 2]> {
 /// sorted, into `out`.
 pub fn find_pairs<T: Real>(model: &Model<T>, x: &[V3<T>], skin: f64, out: &mut Vec<[u32; 2]>) {
     out.clear();
-    let tethers = tethered(model);
+    let tethers = Tethers::of(model);
     let reach = 2.0 * model.contact_rule().radius() + skin;
     search(model, x, reach, |a, b, d| {
-        if d < reach && !tethers.contains(&[a, b]) {
+        if d < reach && !tethers.contains(a, b) {
             out.push([a, b]);
         }
     });
@@ -318,7 +400,7 @@ mod tests {
 
     /// Brute force over every pair: what the grid must find.
     fn every_pair(model: &Model<f64>, x: &[V3<f64>], reach: f64) -> Vec<[u32; 2]> {
-        let tethers = tethered(model);
+        let tethers = Tethers::of(model);
         let segments: Vec<usize> = (0..x.len()).filter(|&a| model.links()[a].next().is_some()).collect();
         let end = |a: usize| x[model.links()[a].next().unwrap() as usize];
         let mut pairs = Vec::new();
@@ -326,7 +408,7 @@ mod tests {
             for &b in &segments[k + 1..] {
                 let d = closest_gap(&x[a], &end(a), &x[b], &end(b)).0.norm();
                 let pair = [a as u32, b as u32];
-                if d < reach && !model.contact_rule().near_along_yarn(a, b) && !tethers.contains(&pair) {
+                if d < reach && !model.contact_rule().near_along_yarn(a, b) && !tethers.contains(pair[0], pair[1]) {
                     pairs.push(pair);
                 }
             }
@@ -367,8 +449,8 @@ mod tests {
         // A dead contact hands its crossing to self-contact.
         let at_rest = State::<f64>::at_rest(&fabric).positions;
         find_pairs(&model, &at_rest, 0.5 * R, &mut found);
-        let tethered_pairs = tethered(&model);
-        assert!(!tethered_pairs.is_empty() && found.iter().all(|p| !tethered_pairs.contains(p)));
+        let tethers = Tethers::of(&model);
+        assert!(!tethers.partners().is_empty() && found.iter().all(|&[a, b]| !tethers.contains(a, b)));
         model.set_contacts_alive(&vec![false; fabric.contacts().len()], &at_rest).unwrap();
         let mut released = Vec::new();
         find_pairs(&model, &at_rest, 0.5 * R, &mut released);

@@ -1,0 +1,192 @@
+// Self-contact between segments of yarn (`yarn_model::self_contact`): the
+// pair arithmetic of `yarn_model::terms` and `yarn_model::step`, operation
+// for operation, and each node's sums over the candidate lists
+// (`lists.wgsl`). Used by the passes that declare `p`, `x`, `v`, `lists`
+// (read and write) and `v_star`.
+//
+// A pair beyond the reach adds exactly zero, so the sums do not depend on
+// which far pairs a list holds, nor on when it was built. Every pair is
+// computed from its lower-numbered segment, so both segments see the same
+// numbers; a node sums the pairs of the segment it starts, then those of
+// the segment it ends, each in the order of the partners: the order of
+// `Serial<f32>` (yarn-backend-cpu's `fabric/touching.rs`).
+
+// A value on each of a pair's four nodes: p0, p1, q0, q1.
+struct Quad {
+    p0: vec3<f32>,
+    p1: vec3<f32>,
+    q0: vec3<f32>,
+    q1: vec3<f32>,
+}
+
+const NO_QUAD: Quad = Quad(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+
+// `terms::self_contact_forces`, zero out of reach or where the closest
+// points coincide.
+fn pair_forces(p0: vec3<f32>, p1: vec3<f32>, q0: vec3<f32>, q1: vec3<f32>) -> Quad {
+    let c = closest_gap(p0, p1, q0, q1);
+    let d = norm(c.gap);
+    if !(d < p.reach && d > 0.0) {
+        return NO_QUAD;
+    }
+    let push = mul3(c.gap, div_rounded(mul(p.self_contact, p.reach - d), d));
+    let p_share = mul3(push, c.s);
+    let q_share = mul3(push, c.t);
+    return Quad(push - p_share, p_share, q_share - push, -q_share);
+}
+
+// `step::self_contact_friction` from x and v* of the pair's four nodes,
+// zero where it returns `None`.
+fn pair_friction(x: Quad, w: Quad) -> Quad {
+    let c = closest_gap(x.p0, x.p1, x.q0, x.q1);
+    let d = norm(c.gap);
+    if !(d < p.reach && d > 0.0) {
+        return NO_QUAD;
+    }
+    let n = vec3<f32>(div_rounded(c.gap.x, d), div_rounded(c.gap.y, d), div_rounded(c.gap.z, d));
+    let shares = vec4<f32>(p.one - c.s, c.s, p.one - c.t, c.t);
+    // Each product is kept whole before it is added (`kept3`): lavapipe
+    // fused these sums in a quarter of the pairs.
+    let q_side = kept3(mul3(w.q0, shares.z)) + kept3(mul3(w.q1, shares.w));
+    let p_side = kept3(mul3(w.p0, shares.x)) + kept3(mul3(w.p1, shares.y));
+    let relative = q_side - p_side;
+    let slip_velocity = relative - mul3(n, dot3(relative, n));
+    let slip = norm(slip_velocity);
+    if slip <= 0.0 {
+        return NO_QUAD;
+    }
+    let inverse_mass = mul(shares.x, shares.x) + mul(shares.y, shares.y) + mul(shares.z, shares.z)
+        + mul(shares.w, shares.w);
+    let cut = mul(mul(mul(p.friction, p.self_impulse), p.reach - d), inverse_mass);
+    let retention = max(1.0 - div_rounded(cut, slip), 0.0);
+    let j = mul3(slip_velocity, div_rounded(retention - 1.0, inverse_mass));
+    return Quad(-mul3(j, shares.x), -mul3(j, shares.y), mul3(j, shares.z), mul3(j, shares.w));
+}
+
+// The pair of segment s (from `s` to `end`) and its partner j, from the
+// lower-numbered of the two: positions, and with `with_velocity` v*.
+struct Pair {
+    x: Quad,
+    w: Quad,
+    // Whether s is the pair's q (the higher-numbered).
+    s_is_q: bool,
+}
+
+fn pair_of(s: u32, end: u32, j: u32, with_velocity: bool) -> Pair {
+    let j_end = segment_end(j);
+    let own = Quad(x[s].xyz, x[end].xyz, x[j].xyz, x[j_end].xyz);
+    var w = NO_QUAD;
+    if with_velocity {
+        w = Quad(v_star(s), v_star(end), v_star(j), v_star(j_end));
+    }
+    if s < j {
+        return Pair(own, w, false);
+    }
+    return Pair(Quad(own.q0, own.q1, own.p0, own.p1), Quad(w.q0, w.q1, w.p0, w.p1), true);
+}
+
+// Of a pair's values, the one on segment s's first node (`at_end` false) or
+// its last. `at_end` is known where this is inlined, so the select folds
+// away and leaves a bare product: callers keep it whole (`kept3`) before
+// adding it up.
+fn own_share(q: Quad, s_is_q: bool, at_end: bool) -> vec3<f32> {
+    if s_is_q {
+        return select(q.q0, q.q1, at_end);
+    }
+    return select(q.p0, q.p1, at_end);
+}
+
+// The self-contact force on segment s's first node (`at_end` false) or its
+// last, summed over its candidates in order (`step::accumulate_forces`'s
+// terms; zero for NONE or a segment without candidates).
+fn segment_push(s: u32, at_end: bool) -> vec3<f32> {
+    var sum = vec3<f32>(0.0);
+    if s == NONE {
+        return sum;
+    }
+    let end = segment_end(s);
+    let count = lists[record_at(s) + 2u];
+    for (var k = 0u; k < count; k++) {
+        let pair = pair_of(s, end, lists[slot_at(s, k)], false);
+        if !apart(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1, p.reach) {
+            sum += kept3(own_share(pair_forces(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1), pair.s_is_q, at_end));
+        }
+    }
+    return sum;
+}
+
+// Node i's self-contact force added to `f`: the segment it starts, then
+// the one it ends.
+fn with_self_contact(f: vec3<f32>, i: u32) -> vec3<f32> {
+    if (p.flags & SELF_CONTACT) == 0u {
+        return f;
+    }
+    let own = segment_push(i, false);
+    return f + own + segment_push(lists[record_at(i)], true);
+}
+
+// A node's self-contact friction changes over one segment: their sum in
+// order, and the longest one's length.
+struct Changes {
+    sum: vec3<f32>,
+    longest: f32,
+}
+
+fn segment_friction(s: u32, at_end: bool) -> Changes {
+    var changes = Changes(vec3<f32>(0.0), 0.0);
+    if s == NONE {
+        return changes;
+    }
+    let end = segment_end(s);
+    let count = lists[record_at(s) + 2u];
+    for (var k = 0u; k < count; k++) {
+        let pair = pair_of(s, end, lists[slot_at(s, k)], true);
+        if !apart(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1, p.reach) {
+            let dv = kept3(own_share(pair_friction(pair.x, pair.w), pair.s_is_q, at_end));
+            changes.sum += dv;
+            changes.longest = max(changes.longest, norm(dv));
+        }
+    }
+    return changes;
+}
+
+// `step::cap`: `sum` cut back to the length `longest`.
+fn cap(sum: vec3<f32>, longest: f32) -> vec3<f32> {
+    let length = norm(sum);
+    return select(sum, mul3(sum, div_rounded(longest, select(1.0, length, length > 0.0))), length > longest);
+}
+
+// Node i's self-contact friction change: the changes over the segment it
+// starts and the one it ends, summed and capped to the longest; zero with
+// self-contact or friction off.
+fn self_contact_friction(i: u32) -> vec3<f32> {
+    if (p.flags & SELF_CONTACT) == 0u || p.friction <= 0.0 {
+        return vec3<f32>(0.0);
+    }
+    let own = segment_friction(i, false);
+    let before = segment_friction(lists[record_at(i)], true);
+    return cap(own.sum + before.sum, max(own.longest, before.longest));
+}
+
+// After the damped velocity update: flag a node whose v* passed the
+// divergence speed, which with self-contact is half a radius a substep
+// (`Model::divergence_speed`); `check.wgsl` reports it.
+fn watch_speed(velocity: vec3<f32>) {
+    if (p.flags & SELF_CONTACT) != 0u && !all(abs(velocity) <= vec3<f32>(p.max_speed)) {
+        lists[SPEEDING] = 1u;
+    }
+}
+
+// After a node moves to `at`: flag a rebuild when it has moved more than
+// half the skin from its anchor.
+fn watch_move(i: u32, at: vec3<f32>) {
+    if (p.flags & SELF_CONTACT) == 0u {
+        return;
+    }
+    let a = anchor_at(i);
+    let d = at - vec3<f32>(bitcast<f32>(lists[a]), bitcast<f32>(lists[a + 1u]), bitcast<f32>(lists[a + 2u]));
+    // A NaN fails the comparison, so it rebuilds too.
+    if !(dot3(d, d) <= mul(p.half_skin, p.half_skin)) {
+        lists[STALE] = 1u;
+    }
+}

@@ -1,0 +1,314 @@
+//! The self-contact list passes against their CPU twins
+//! (`yarn_model::self_contact::grid`), and the lists' growth.
+
+use std::sync::Arc;
+
+use yarn_backend_cpu::Serial;
+use yarn_model::self_contact::grid;
+use yarn_model::{Backend, BackendError, Params, State, V3};
+use yarn_topology::{Chart, Fabric, Geometry};
+
+use crate::fabric::FIRST_SLOTS;
+use crate::{Gpu, Mode, Wgpu, testing};
+
+/// A 3x3 stockinette with each node moved up to `amount` along each axis
+/// and then every position scaled by `squeeze` about the origin.
+fn crumpled(amount: f32, squeeze: f32) -> (Fabric, State<f32>) {
+    let fabric = Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::default()).unwrap();
+    let mut state = State::<f32>::at_rest(&fabric);
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    for p in &mut state.positions {
+        for k in 0..3 {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            p[k] = (p[k] + ((seed >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 2.0 * amount) * squeeze;
+        }
+    }
+    (fabric, state)
+}
+
+/// The GPU's lists at the positions loaded: per node, the segment's
+/// candidates and the anchor.
+fn gpu_lists(backend: &Wgpu) -> (Vec<Vec<u32>>, Vec<V3<f32>>) {
+    let loaded = backend.loaded.as_ref().unwrap();
+    let n = loaded.model.node_count();
+    let slots = loaded.slots as usize;
+    let bytes = loaded.read(&loaded.buffers.lists, crate::bindings::lists_bytes(n, loaded.slots)).unwrap();
+    let words: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
+    let lists = (0..n)
+        .map(|i| {
+            let count = words[4 + 4 * i + 2] as usize;
+            words[4 + 8 * n + slots * i..][..count].to_vec()
+        })
+        .collect();
+    let anchors = (0..n)
+        .map(|i| {
+            let a = &words[4 + 4 * (n + i)..][..3];
+            V3::new(f32::from_bits(a[0]), f32::from_bits(a[1]), f32::from_bits(a[2]))
+        })
+        .collect();
+    (lists, anchors)
+}
+
+fn gpu() -> Option<Arc<Gpu>> {
+    testing::shared_gpu()
+}
+
+/// `grid_insert.wgsl` and `grid_find.wgsl` build the twins' lists entry for
+/// entry, at rest, crumpled, and with yarn pulled out long across the patch
+/// (the long list), whatever order their atomics ran in, and anchor every
+/// node where it is.
+#[test]
+fn the_gpu_lists_are_the_twins() {
+    let Some(gpu) = gpu() else { return };
+    let params = Params { self_contact_stiffness: 800.0, ..Params::default() };
+    for (amount, pulled) in [(0.0, false), (1.8, false), (0.5, true)] {
+        let (fabric, mut state) = crumpled(amount, 1.0);
+        if pulled {
+            for (node, by) in [(30, 8.0), (31, -6.0), (100, 12.0)] {
+                state.positions[node] += V3::new(by, 0.0, 0.5 * by);
+            }
+        }
+        let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
+        backend.load(&fabric, &params).unwrap();
+        backend.write_state(&state).unwrap();
+        backend.forces().unwrap();
+        let (lists, anchors) = gpu_lists(&backend);
+        let twins = grid::lists(backend.model().unwrap(), &state.positions).unwrap();
+        assert_eq!(lists, twins, "amount {amount}");
+        assert_eq!(anchors, state.positions);
+        assert!(amount == 0.0 || twins.iter().map(Vec::len).sum::<usize>() > 200);
+    }
+}
+
+/// A crush that puts more candidates near a segment than the lists hold
+/// grows them and runs the batch again, to `Serial<f32>`'s forces and
+/// trajectory bit for bit; on a device whose bindings cannot hold lists
+/// that long it is refused by name, with the state kept.
+#[test]
+fn a_crush_grows_the_lists_or_is_refused_by_name() {
+    let Some(gpu) = gpu() else { return };
+    let params = Params { self_contact_stiffness: 200.0, sleep_speed: 0.0, substep: 1.0 / 6000.0, ..Params::default() };
+    let (fabric, state) = crumpled(0.5, 0.35);
+    let twins = grid::lists(&yarn_model::Model::<f32>::new(&fabric, &params).unwrap(), &state.positions).unwrap();
+    let most = twins.iter().map(Vec::len).max().unwrap();
+    assert!(most > FIRST_SLOTS as usize, "the crush puts {most} candidates near one segment");
+    let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
+    let mut serial = Serial::<f32>::new();
+    for b in [&mut backend as &mut dyn Backend<Real = f32>, &mut serial] {
+        b.load(&fabric, &params).unwrap();
+        b.write_state(&state).unwrap();
+    }
+    assert_eq!(backend.forces().unwrap(), serial.forces().unwrap());
+    let slots = backend.loaded.as_ref().unwrap().slots;
+    assert!(slots as usize >= most && slots > FIRST_SLOTS, "{slots} slots for {most} candidates");
+    backend.advance(20).unwrap();
+    serial.advance(20).unwrap();
+    assert_eq!(backend.state().unwrap(), serial.state().unwrap());
+
+    // Lists of 16 slots fit a binding of this size; 32 do not.
+    let bytes = crate::bindings::lists_bytes(fabric.node_count(), FIRST_SLOTS);
+    let mut limits = gpu.device().limits();
+    limits.max_storage_buffer_binding_size = bytes.next_multiple_of(256);
+    let narrow = Gpu::with_limits(limits).expect("lower limits than the adapter's open");
+    let mut backend = Wgpu::with_gpu(narrow, Mode::Gather);
+    backend.load(&fabric, &params).unwrap();
+    backend.write_state(&state).unwrap();
+    match backend.advance(5) {
+        Err(BackendError::TooLarge { what, needed, limit, limit_name }) => {
+            assert_eq!(
+                (what, limit_name),
+                ("the self-contact candidate lists (bytes)", "max_storage_buffer_binding_size")
+            );
+            assert!(needed > limit, "{needed} bytes in {limit}");
+        }
+        other => panic!("expected TooLarge, got {other:?}"),
+    }
+    assert_eq!(backend.state().unwrap(), state, "the refused batch is put back");
+}
+
+/// Run `kernel` (a WGSL entry point `main` over `cases` threads that reads
+/// `input` and writes `output`, `outputs` vec4s a case) after the prelude,
+/// the lists' arithmetic and `touch.wgsl`, with `backend`'s parameters.
+fn run_kernel(backend: &Wgpu, kernel: &str, input: &[[f32; 4]], cases: usize, outputs: usize) -> Vec<[f32; 4]> {
+    use wgpu::util::DeviceExt;
+    let loaded = backend.loaded.as_ref().unwrap();
+    let device = &loaded.gpu.device;
+    let source = [crate::shaders::COMMON, crate::shaders::LISTS, crate::shaders::TOUCH, kernel].join("\n");
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("pair kernel"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: None,
+        layout: None,
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let params = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::bytes_of(&loaded.gpu_params()),
+        usage: wgpu::BufferUsages::UNIFORM,
+    });
+    let input = crate::bindings::storage(device, "input", input);
+    let bytes = (cases * outputs * 16) as u64;
+    let output = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: bytes,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: input.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 2, resource: output.as_entire_binding() },
+        ],
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(cases.div_ceil(64) as u32, 1, 1);
+    }
+    loaded.gpu.queue.submit([encoder.finish()]);
+    bytemuck::pod_collect_to_vec(&loaded.read(&output, bytes).unwrap())
+}
+
+/// The pair arithmetic of `touch.wgsl` (closest points, the push, the
+/// friction changes) and the colliders' of `common.wgsl` give the CPU's
+/// numbers bit for bit on random pairs of segments in and out of reach, as
+/// the conformance suite needs of whole substeps; a mismatch is counted per
+/// quantity, so a compiler that rounds one step its own way shows where.
+#[test]
+fn the_pair_arithmetic_is_the_cpus_bit_for_bit() {
+    use yarn_model::step::{collider_friction, self_contact_friction};
+    use yarn_model::terms::{closest_gap, self_contact_forces};
+    use yarn_model::{Collider, Plane};
+    let Some(gpu) = gpu() else { return };
+    let params = Params { self_contact_stiffness: 800.0, friction: 0.3, ..Params::default() };
+    let (fabric, _) = crumpled(0.0, 1.0);
+    let mut backend = Wgpu::with_gpu(gpu, Mode::Gather);
+    backend.load(&fabric, &params).unwrap();
+    let floor = Plane { normal: yarn_topology::Vec3::new(0.2, 1.0, -0.1), ..Plane::floor(0.3) };
+    backend.set_colliders(&[Collider::Plane(floor)]).unwrap();
+    let model = backend.model().unwrap().clone();
+    let cases = 4096;
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+    };
+    // Per case: p0, p1, q0, q1, then their velocities.
+    let base = [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.6, -1.0], [0.0, 1.6, 1.0]];
+    let mut input = Vec::with_capacity(8 * cases);
+    for _ in 0..cases {
+        input.extend(base.map(|b| [b[0] + 0.4 * next(), b[1] + 0.4 * next(), b[2] + 0.4 * next(), 0.0]));
+        input.extend((0..4).map(|_| [5.0 * next(), 5.0 * next(), 5.0 * next(), 0.0]));
+    }
+    let kernel = "
+@group(0) @binding(0) var<uniform> p: Params;
+@group(0) @binding(1) var<storage, read> x: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read_write> v: array<vec4<f32>>;
+var<private> lists: array<u32, 4>;
+fn v_star(j: u32) -> vec3<f32> { return vec3<f32>(0.0); }
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let b = 8u * id.x;
+    let at = Quad(x[b].xyz, x[b + 1u].xyz, x[b + 2u].xyz, x[b + 3u].xyz);
+    let w = Quad(x[b + 4u].xyz, x[b + 5u].xyz, x[b + 6u].xyz, x[b + 7u].xyz);
+    let c = closest_gap(at.p0, at.p1, at.q0, at.q1);
+    let f = pair_forces(at.p0, at.p1, at.q0, at.q1);
+    let dv = pair_friction(at, w);
+    let o = 15u * id.x;
+    v[o] = vec4<f32>(c.gap, c.s);
+    v[o + 1u] = vec4<f32>(c.t, 0.0, 0.0, 0.0);
+    v[o + 2u] = vec4<f32>(f.p0, 0.0);
+    v[o + 3u] = vec4<f32>(f.p1, 0.0);
+    v[o + 4u] = vec4<f32>(f.q0, 0.0);
+    v[o + 5u] = vec4<f32>(f.q1, 0.0);
+    v[o + 6u] = vec4<f32>(dv.p0, 0.0);
+    v[o + 7u] = vec4<f32>(dv.p1, 0.0);
+    v[o + 8u] = vec4<f32>(dv.q0, 0.0);
+    v[o + 9u] = vec4<f32>(dv.q1, 0.0);
+    v[o + 10u] = vec4<f32>(with_colliders(vec3<f32>(0.0), at.p0), 0.0);
+    v[o + 11u] = vec4<f32>(collider_friction(at.p0, w.p0), 0.0);
+    let s = p.surfaces[0];
+    let slip = w.p0 - mul3(s.normal, dot3(s.normal, w.p0));
+    v[o + 12u] = vec4<f32>(slip, dot3(s.normal, at.p0) - s.offset);
+    // A segment's sums over three partners, as a node gathers them: this
+    // case's pair and the next two cases', capped for friction.
+    var push = vec3<f32>(0.0);
+    var drag = Changes(vec3<f32>(0.0), 0.0);
+    for (var k = 0u; k < 3u; k++) {
+        let e = 8u * ((id.x + k) % (arrayLength(&x) / 8u));
+        let pair = Quad(x[e].xyz, x[e + 1u].xyz, x[e + 2u].xyz, x[e + 3u].xyz);
+        let speed = Quad(x[e + 4u].xyz, x[e + 5u].xyz, x[e + 6u].xyz, x[e + 7u].xyz);
+        push += kept3(own_share(pair_forces(pair.p0, pair.p1, pair.q0, pair.q1), false, true));
+        let dv = kept3(own_share(pair_friction(pair, speed), true, false));
+        drag.sum += dv;
+        drag.longest = max(drag.longest, norm(dv));
+    }
+    v[o + 13u] = vec4<f32>(push, 0.0);
+    v[o + 14u] = vec4<f32>(cap(drag.sum, drag.longest), 0.0);
+}";
+    let out = run_kernel(&backend, kernel, &input, cases, 15);
+    let c = model.coeffs();
+    let (r, reach) = (model.contact_rule().radius() as f32, (2.0 * model.contact_rule().radius()) as f32);
+    let mut wrong = std::collections::BTreeMap::<&str, usize>::new();
+    let mut touching = 0;
+    for k in 0..cases {
+        let v3 = |i: usize| V3::new(input[8 * k + i][0], input[8 * k + i][1], input[8 * k + i][2]);
+        let o = |i: usize| V3::new(out[15 * k + i][0], out[15 * k + i][1], out[15 * k + i][2]);
+        let (x, w) = ([v3(0), v3(1), v3(2), v3(3)], [v3(4), v3(5), v3(6), v3(7)]);
+        let (gap, s, t) = closest_gap(&x[0], &x[1], &x[2], &x[3]);
+        let forces = self_contact_forces(&x[0], &x[1], &x[2], &x[3], reach, c.self_contact);
+        touching += usize::from(forces.is_some());
+        let forces = forces.unwrap_or([V3::zeros(); 4]);
+        let dv = self_contact_friction([&x[0], &x[1], &x[2], &x[3]], [&w[0], &w[1], &w[2], &w[3]], reach, c)
+            .unwrap_or([V3::zeros(); 4]);
+        let surfaces = model.surfaces();
+        let push = surfaces[0].force(&x[0], r, c.collider).unwrap_or_default();
+        let drag = collider_friction(surfaces, &x[0], &w[0], r, c.collider_impulse);
+        let n = surfaces[0].normal;
+        let slip = w[0] - n * n.dot(&w[0]);
+        let height = n.dot(&x[0]) - surfaces[0].offset;
+        let mut count = |what, same: bool| *wrong.entry(what).or_default() += usize::from(!same);
+        count("closest gap", o(0) == gap && out[15 * k][3] == s && out[15 * k + 1][0] == t);
+        count("push", (0..4).all(|m| o(2 + m) == forces[m]));
+        count("friction", (0..4).all(|m| o(6 + m) == dv[m]));
+        count("collider push", o(10) == push);
+        count("collider friction", o(11) == drag);
+        count("collider slip", o(12) == slip);
+        count("collider height", out[15 * k + 12][3] == height);
+        // The sums over this case's pair and the next two cases'.
+        let partners: Vec<usize> = (0..3).map(|m| (k + m) % cases).collect();
+        let pair_of = |m: usize| {
+            let v3 = |i: usize| V3::new(input[8 * m + i][0], input[8 * m + i][1], input[8 * m + i][2]);
+            ([v3(0), v3(1), v3(2), v3(3)], [v3(4), v3(5), v3(6), v3(7)])
+        };
+        let push_sum = partners.iter().fold(V3::zeros(), |sum, &m| {
+            let (x, _) = pair_of(m);
+            sum + self_contact_forces(&x[0], &x[1], &x[2], &x[3], reach, c.self_contact).map_or(V3::zeros(), |f| f[1])
+        });
+        let (drag_sum, longest) = partners.iter().fold((V3::zeros(), 0.0f32), |(sum, longest), &m| {
+            let (x, w) = pair_of(m);
+            let dv = self_contact_friction([&x[0], &x[1], &x[2], &x[3]], [&w[0], &w[1], &w[2], &w[3]], reach, c)
+                .map_or(V3::zeros(), |dv| dv[2]);
+            (sum + dv, longest.max(dv.norm()))
+        });
+        count("pushes summed", o(13) == push_sum);
+        count("friction summed and capped", o(14) == yarn_model::step::cap(drag_sum, longest));
+    }
+    println!("{touching} of {cases} pairs in reach; mismatches: {wrong:?}");
+    assert!(touching > cases / 4 && touching < cases, "{touching} of {cases} in reach");
+    assert!(wrong.values().all(|&n| n == 0), "mismatches: {wrong:?}");
+}
