@@ -228,6 +228,21 @@ pub fn closest_approach<T: Real>(model: &Model<T>, x: &[V3<T>], within: f64) -> 
     best
 }
 
+/// Every pair of segments `[a, b]`, `a` < `b`, not near each other along
+/// their yarn ([`ContactRule::near_along_yarn`]) and closer than `within`
+/// radii at `x`, tethered crossings included, sorted: every place where
+/// yarn must not pass through yarn.
+pub fn pairs_within<T: Real>(model: &Model<T>, x: &[V3<T>], within: f64, out: &mut Vec<[u32; 2]>) {
+    out.clear();
+    let reach = within * model.contact_rule().radius();
+    search(model, x, reach, |a, b, d| {
+        if d < reach {
+            out.push([a, b]);
+        }
+    });
+    out.sort_unstable();
+}
+
 /// Call `visit(a, b, d)` for every pair of segments `a` < `b` that are not
 /// near along their yarn, with their closest distance d at `x`, for at
 /// least every pair closer than `reach` (others may be visited too).
