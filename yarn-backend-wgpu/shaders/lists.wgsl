@@ -8,6 +8,9 @@
 //   (NONE where none), and how many candidates the segment it starts has;
 // - per node, the position it was at when the lists were last built (the
 //   anchor), as f32 bits;
+// - per segment, its pairs' sums on its first and its last node, written
+//   by `pairs.wgsl` and read by the node passes, as f32 bits (x, y, z and,
+//   for friction, the longest change);
 // - per segment, `p.slots` candidate slots: the partner segments, sorted.
 
 // `lists[STALE]`: some node has moved half the skin since the last build
@@ -27,8 +30,12 @@ fn anchor_at(i: u32) -> u32 {
     return RECORDS + 4u * (p.nodes + i);
 }
 
+fn sums_at(s: u32) -> u32 {
+    return RECORDS + 8u * p.nodes + 8u * s;
+}
+
 fn slot_at(s: u32, k: u32) -> u32 {
-    return RECORDS + 8u * p.nodes + s * p.slots + k;
+    return RECORDS + 16u * p.nodes + s * p.slots + k;
 }
 
 // The node segment s ends at (NONE where none starts at s).

@@ -1,15 +1,16 @@
 // Self-contact between segments of yarn (`yarn_model::self_contact`): the
 // pair arithmetic of `yarn_model::terms` and `yarn_model::step`, operation
-// for operation, and each node's sums over the candidate lists
-// (`lists.wgsl`). Used by the passes that declare `p`, `x`, `v`, `lists`
-// (read and write) and `v_star`.
+// for operation, each segment's sums over its candidate list (`pairs.wgsl`
+// writes them), and each node's from its two segments'. Used by the passes
+// that declare `p`, `x`, `v`, `lists` (read and write) and `v_star`.
 //
 // A pair beyond the reach adds exactly zero, so the sums do not depend on
 // which far pairs a list holds, nor on when it was built. Every pair is
 // computed from its lower-numbered segment, so both segments see the same
-// numbers; a node sums the pairs of the segment it starts, then those of
-// the segment it ends, each in the order of the partners: the order of
-// `Serial<f32>` (yarn-backend-cpu's `fabric/touching.rs`).
+// numbers; a node takes the sum of the segment it starts, then that of the
+// segment it ends, each over the partners in order: the order of
+// `Serial<f32>` (yarn-backend-cpu's `fabric/touching.rs`). The friction
+// changes' sum at a node is capped by the longest of them.
 
 // A value on each of a pair's four nodes: p0, p1, q0, q1.
 struct Quad {
@@ -85,69 +86,89 @@ fn pair_of(s: u32, end: u32, j: u32, with_velocity: bool) -> Pair {
     return Pair(Quad(own.q0, own.q1, own.p0, own.p1), Quad(w.q0, w.q1, w.p0, w.p1), true);
 }
 
-// Of a pair's values, the one on segment s's first node (`at_end` false) or
-// its last. `at_end` is known where this is inlined, so the select folds
-// away and leaves a bare product: callers keep it whole (`kept3`) before
-// adding it up.
-fn own_share(q: Quad, s_is_q: bool, at_end: bool) -> vec3<f32> {
-    if s_is_q {
-        return select(q.q0, q.q1, at_end);
-    }
-    return select(q.p0, q.p1, at_end);
+// A pair's values on segment s's first node and its last. Each is kept
+// whole (`kept3`) before it is summed: a compiler may fuse a bare product
+// into the add.
+fn first_share(q: Quad, s_is_q: bool) -> vec3<f32> {
+    return kept3(select(q.p0, q.q0, s_is_q));
 }
 
-// The self-contact force on segment s's first node (`at_end` false) or its
-// last, summed over its candidates in order (`step::accumulate_forces`'s
-// terms; zero for NONE or a segment without candidates).
-fn segment_push(s: u32, at_end: bool) -> vec3<f32> {
-    var sum = vec3<f32>(0.0);
-    if s == NONE {
-        return sum;
-    }
+fn last_share(q: Quad, s_is_q: bool) -> vec3<f32> {
+    return kept3(select(q.p1, q.q1, s_is_q));
+}
+
+// A segment's sums over its candidates, in order, on its first node and on
+// its last, and for friction the longest change on each.
+struct Sums {
+    first: vec3<f32>,
+    first_longest: f32,
+    last: vec3<f32>,
+    last_longest: f32,
+}
+
+const NO_SUMS: Sums = Sums(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
+
+// Segment s's pushes (`step::accumulate_forces`'s self-contact terms), or
+// with `friction` its friction changes from x and v*
+// (`step::self_contact_friction`); no sums for a node that starts no
+// segment.
+fn segment_sums(s: u32, friction: bool) -> Sums {
+    var sums = NO_SUMS;
     let end = segment_end(s);
+    if end == NONE {
+        return sums;
+    }
     let count = lists[record_at(s) + 2u];
     for (var k = 0u; k < count; k++) {
-        let pair = pair_of(s, end, lists[slot_at(s, k)], false);
-        if !apart(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1, p.reach) {
-            sum += kept3(own_share(pair_forces(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1), pair.s_is_q, at_end));
+        let pair = pair_of(s, end, lists[slot_at(s, k)], friction);
+        if apart(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1, p.reach) {
+            continue;
+        }
+        var values: Quad;
+        if friction {
+            values = pair_friction(pair.x, pair.w);
+        } else {
+            values = pair_forces(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1);
+        }
+        let first = first_share(values, pair.s_is_q);
+        let last = last_share(values, pair.s_is_q);
+        sums.first += first;
+        sums.last += last;
+        if friction {
+            sums.first_longest = max(sums.first_longest, norm(first));
+            sums.last_longest = max(sums.last_longest, norm(last));
         }
     }
-    return sum;
+    return sums;
 }
 
-// Node i's self-contact force added to `f`: the segment it starts, then
-// the one it ends.
+// Write segment s's sums where the node passes read them.
+fn store_sums(s: u32, sums: Sums) {
+    let at = sums_at(s);
+    let words = array<f32, 8>(sums.first.x, sums.first.y, sums.first.z, sums.first_longest, sums.last.x,
+                              sums.last.y, sums.last.z, sums.last_longest);
+    for (var k = 0u; k < 8u; k++) {
+        lists[at + k] = bitcast<u32>(words[k]);
+    }
+}
+
+// Segment s's sum on its first node (`on_last` false) or its last, with
+// the longest change in w; zero where s is NONE or starts no segment.
+fn stored_sum(s: u32, on_last: bool) -> vec4<f32> {
+    if s == NONE || segment_end(s) == NONE {
+        return vec4<f32>(0.0);
+    }
+    let at = sums_at(s) + select(0u, 4u, on_last);
+    return bitcast<vec4<f32>>(vec4<u32>(lists[at], lists[at + 1u], lists[at + 2u], lists[at + 3u]));
+}
+
+// Node i's self-contact force added to `f`: the sum of the segment it
+// starts, then of the one it ends (`pairs.wgsl`'s `forces` wrote them).
 fn with_self_contact(f: vec3<f32>, i: u32) -> vec3<f32> {
     if (p.flags & SELF_CONTACT) == 0u {
         return f;
     }
-    let own = segment_push(i, false);
-    return f + own + segment_push(lists[record_at(i)], true);
-}
-
-// A node's self-contact friction changes over one segment: their sum in
-// order, and the longest one's length.
-struct Changes {
-    sum: vec3<f32>,
-    longest: f32,
-}
-
-fn segment_friction(s: u32, at_end: bool) -> Changes {
-    var changes = Changes(vec3<f32>(0.0), 0.0);
-    if s == NONE {
-        return changes;
-    }
-    let end = segment_end(s);
-    let count = lists[record_at(s) + 2u];
-    for (var k = 0u; k < count; k++) {
-        let pair = pair_of(s, end, lists[slot_at(s, k)], true);
-        if !apart(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1, p.reach) {
-            let dv = kept3(own_share(pair_friction(pair.x, pair.w), pair.s_is_q, at_end));
-            changes.sum += dv;
-            changes.longest = max(changes.longest, norm(dv));
-        }
-    }
-    return changes;
+    return f + stored_sum(i, false).xyz + stored_sum(lists[record_at(i)], true).xyz;
 }
 
 // `step::cap`: `sum` cut back to the length `longest`.
@@ -157,15 +178,16 @@ fn cap(sum: vec3<f32>, longest: f32) -> vec3<f32> {
 }
 
 // Node i's self-contact friction change: the changes over the segment it
-// starts and the one it ends, summed and capped to the longest; zero with
-// self-contact or friction off.
+// starts and the one it ends (`pairs.wgsl`'s `friction` summed them),
+// summed and capped to the longest; zero with self-contact or friction
+// off.
 fn self_contact_friction(i: u32) -> vec3<f32> {
     if (p.flags & SELF_CONTACT) == 0u || p.friction <= 0.0 {
         return vec3<f32>(0.0);
     }
-    let own = segment_friction(i, false);
-    let before = segment_friction(lists[record_at(i)], true);
-    return cap(own.sum + before.sum, max(own.longest, before.longest));
+    let own = stored_sum(i, false);
+    let before = stored_sum(lists[record_at(i)], true);
+    return cap(own.xyz + before.xyz, max(own.w, before.w));
 }
 
 // After the damped velocity update: flag a node whose v* passed the

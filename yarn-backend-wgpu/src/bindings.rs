@@ -144,7 +144,7 @@ pub(crate) fn lists(model: &Model<f32>, slots: u32) -> Vec<u32> {
         return vec![0; 4];
     }
     let n = model.node_count();
-    let mut lists = vec![0u32; 4 + 8 * n + slots as usize * n];
+    let mut lists = vec![0u32; 4 + 16 * n + slots as usize * n];
     lists[0] = 1;
     for (i, link) in model.links().iter().enumerate() {
         let [prev, next] = link.raw();
@@ -156,7 +156,7 @@ pub(crate) fn lists(model: &Model<f32>, slots: u32) -> Vec<u32> {
 
 /// Bytes of [`lists`] for `nodes` nodes and `slots` slots.
 pub(crate) fn lists_bytes(nodes: usize, slots: u32) -> u64 {
-    4 * (4 + (8 + u64::from(slots)) * nodes as u64)
+    4 * (4 + (16 + u64::from(slots)) * nodes as u64)
 }
 
 /// The rule of `model`'s self-contact and its tethered pairs
@@ -206,6 +206,7 @@ pub(crate) struct Groups {
     pub(crate) plan: wgpu::BindGroup,
     pub(crate) grid_insert: ByParity,
     pub(crate) grid_find: ByParity,
+    pub(crate) pairs: ByParity,
 }
 
 impl Groups {
@@ -250,6 +251,9 @@ impl Groups {
             grid_insert: ByParity::new(|at| {
                 let bound = [&buffers.params, &x[at.x], &buffers.lists, &buffers.grid];
                 bind(gpu, &pipelines.grid_insert.layout, "grid insert", &bound)
+            }),
+            pairs: ByParity::new(|at| {
+                bind(gpu, &pipelines.pairs.layout, "pairs", &[&buffers.params, &x[at.x], &v[at.v], &buffers.lists])
             }),
             grid_find: ByParity::new(|at| {
                 let bound = [&buffers.params, &x[at.x], &buffers.lists, &buffers.grid, &buffers.rule, &buffers.status];

@@ -47,6 +47,7 @@ const FRICTION_AND_MOVE: &[Stage] = &[Stage::Friction, Stage::Move];
 const PINS: &[Stage] = &[Stage::Pins];
 const RESEAT: &[Stage] = &[Stage::Reseat];
 const CHECK: &[Stage] = &[Stage::Check];
+const FRICTION: &[Stage] = &[Stage::Friction];
 /// The self-contact lists are part of finding the forces.
 const LISTS: &[Stage] = &[Stage::Forces];
 
@@ -74,10 +75,10 @@ impl GpuFabric {
             && self.model.surfaces().is_empty()
     }
 
-    /// Hand the self-contact list passes of one substep from `at` to
-    /// `each`: whether to rebuild (`plan.wgsl`), then the rebuild's two
-    /// passes, dispatched indirectly by its answer. Nothing with
-    /// self-contact off.
+    /// Hand the self-contact passes before a substep's forces, from `at`, to
+    /// `each`: whether to rebuild (`plan.wgsl`), the rebuild's two passes,
+    /// dispatched indirectly by its answer, and each segment's sums of its
+    /// pairs' pushes (`pairs.wgsl`). Nothing with self-contact off.
     pub(crate) fn list_plan<'s>(&'s self, at: Parity, each: &mut impl FnMut(&Dispatch<'s>)) {
         if !self.model.self_contact() {
             return;
@@ -108,6 +109,20 @@ impl GpuFabric {
             workgroups: (0, 0),
             indirect: counts,
         });
+        each(&self.pair_sums(at, false));
+    }
+
+    /// `pairs.wgsl` from `at`: each segment's sums of its pairs' pushes, or
+    /// with `friction` of their friction changes from v*.
+    fn pair_sums(&self, at: Parity, friction: bool) -> Dispatch<'_> {
+        Dispatch {
+            pass: if friction { "pairs.wgsl friction" } else { "pairs.wgsl forces" },
+            stages: if friction { FRICTION } else { FORCES },
+            pipeline: &self.gpu.pipelines.pairs.entries[usize::from(friction)],
+            group: self.groups.pairs.at(at),
+            workgroups: self.workgroups(self.model.node_count()),
+            indirect: None,
+        }
     }
 
     /// Hand each dispatch of one substep from `at` to `each`, in order:
@@ -162,6 +177,9 @@ impl GpuFabric {
                 indirect: None,
             });
             if friction {
+                if self.model.self_contact() && self.model.coeffs().friction > 0.0 {
+                    each(&self.pair_sums(at, true));
+                }
                 let group = groups.friction.at(at);
                 let pipeline = &pipelines.friction.entries[0];
                 each(&Dispatch {

@@ -39,7 +39,7 @@ fn gpu_lists(backend: &Wgpu) -> (Vec<Vec<u32>>, Vec<V3<f32>>) {
     let lists = (0..n)
         .map(|i| {
             let count = words[4 + 4 * i + 2] as usize;
-            words[4 + 8 * n + slots * i..][..count].to_vec()
+            words[4 + 16 * n + slots * i..][..count].to_vec()
         })
         .collect();
     let anchors = (0..n)
@@ -247,18 +247,19 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     // A segment's sums over three partners, as a node gathers them: this
     // case's pair and the next two cases', capped for friction.
     var push = vec3<f32>(0.0);
-    var drag = Changes(vec3<f32>(0.0), 0.0);
+    var drag = vec3<f32>(0.0);
+    var longest = 0.0;
     for (var k = 0u; k < 3u; k++) {
         let e = 8u * ((id.x + k) % (arrayLength(&x) / 8u));
         let pair = Quad(x[e].xyz, x[e + 1u].xyz, x[e + 2u].xyz, x[e + 3u].xyz);
         let speed = Quad(x[e + 4u].xyz, x[e + 5u].xyz, x[e + 6u].xyz, x[e + 7u].xyz);
-        push += kept3(own_share(pair_forces(pair.p0, pair.p1, pair.q0, pair.q1), false, true));
-        let dv = kept3(own_share(pair_friction(pair, speed), true, false));
-        drag.sum += dv;
-        drag.longest = max(drag.longest, norm(dv));
+        push += last_share(pair_forces(pair.p0, pair.p1, pair.q0, pair.q1), false);
+        let dv = first_share(pair_friction(pair, speed), true);
+        drag += dv;
+        longest = max(longest, norm(dv));
     }
     v[o + 13u] = vec4<f32>(push, 0.0);
-    v[o + 14u] = vec4<f32>(cap(drag.sum, drag.longest), 0.0);
+    v[o + 14u] = vec4<f32>(cap(drag, longest), 0.0);
 }";
     let out = run_kernel(&backend, kernel, &input, cases, 15);
     let c = model.coeffs();

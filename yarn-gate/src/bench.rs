@@ -66,6 +66,11 @@ pub struct BenchArgs {
     /// [default: the model's default].
     #[arg(long)]
     self_contact: Option<f64>,
+    /// The self-contact lists' skin, in yarn radii: a wider one rebuilds
+    /// them less often and holds more far pairs [default: the model's
+    /// default].
+    #[arg(long)]
+    skin: Option<f64>,
     /// Substeps to run before timing, so the fabric settles.
     #[arg(long, default_value_t = 0)]
     settle: u64,
@@ -98,6 +103,7 @@ impl BenchArgs {
             gravity: self.gravity,
             sleep_speed: self.sleep,
             self_contact_stiffness: self.self_contact.unwrap_or(defaults.self_contact_stiffness),
+            self_contact_skin: self.skin.unwrap_or(defaults.self_contact_skin),
             ..defaults
         };
         let charts = match &self.pattern {
@@ -272,6 +278,12 @@ pub struct BenchRow {
     pub ns_max: f64,
     /// Median substeps per second.
     pub substeps_per_s: f64,
+    /// The self-contact stiffness of the scene (0: off).
+    pub self_contact: f64,
+    /// Self-contact list builds per 1,000 substeps over the timed runs,
+    /// where self-contact is on and the backend counts them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub builds_per_1000: Option<f64>,
     /// Where the substeps' time went, pass by pass, when
     /// [`BenchConfig::stages`] asked.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -396,6 +408,7 @@ pub fn bench<B: Backend>(
         let substeps = (config.work_per_run / nodes as u64).max(50);
         // Warm-up: caches, the thread pool, and the release transient.
         backend.advance(config.settle.max(substeps / 4 + 1))?;
+        let builds_before = backend.self_contact_builds();
         let mut times = Vec::with_capacity(config.repeats);
         for _ in 0..config.repeats {
             let start = Instant::now();
@@ -403,6 +416,9 @@ pub fn bench<B: Backend>(
             times.push(start.elapsed().as_secs_f64());
             count_one();
         }
+        let builds_per_1000 = builds_before.zip(backend.self_contact_builds()).map(|(before, after)| {
+            1000.0 * after.saturating_sub(before) as f64 / (config.repeats as u64 * substeps) as f64
+        });
         let mut calls = Vec::with_capacity(stage_calls);
         for _ in 0..stage_calls {
             calls.push(backend.advance_timed(substeps)?);
@@ -430,6 +446,8 @@ pub fn bench<B: Backend>(
             ns_min: per(times[0]),
             ns_max: per(times[times.len() - 1]),
             substeps_per_s: substeps as f64 / median_time,
+            self_contact: config.params.self_contact_stiffness,
+            builds_per_1000,
             stages: StageReport::median_of(&calls),
         });
     }
@@ -471,6 +489,14 @@ pub fn table(rows: &[BenchRow]) -> String {
             r.dead_contacts,
             r.sleep_speed
         );
+        if r.self_contact > 0.0 {
+            out.pop();
+            out += &format!(" k_sc={}", r.self_contact);
+            if let Some(builds) = r.builds_per_1000 {
+                out += &format!(" builds/1000={builds:.1}");
+            }
+            out.push('\n');
+        }
     }
     out
 }
@@ -596,6 +622,8 @@ mod tests {
             ns_min: 1.0,
             ns_max: 1.0,
             substeps_per_s: 1.0,
+            self_contact: 0.0,
+            builds_per_1000: None,
             stages,
         };
         assert_eq!(stages_table(&[row(None)]), "");

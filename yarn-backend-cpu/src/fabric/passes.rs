@@ -45,7 +45,7 @@ use yarn_model::{Real, V3};
 
 use super::CpuFabric;
 use super::field::{BLOCK, BlockMut, Field};
-use super::touching::PAIRS_PER_BLOCK;
+use super::touching::{self, PAIRS_PER_BLOCK};
 
 /// Fewest blocks per rayon task (about 12 µs of work): a patch under 1,024
 /// nodes runs on one thread instead of paying to wake another, and larger
@@ -190,6 +190,25 @@ impl<T: Real> CpuFabric<T> {
         );
         self.touching.active = active;
         self.touching.force = force;
+        self.segment_sums(false);
+    }
+
+    /// Each segment's sums of its pushing pairs' forces or, with
+    /// `friction`, of their friction changes (`touching::SegmentSums`).
+    fn segment_sums(&mut self, friction: bool) {
+        let mut sums = std::mem::take(&mut self.touching.sums);
+        let this = &*self;
+        let body = |(block, out): (usize, &mut [touching::SegmentSums<T>])| {
+            this.touching.sums_block(block, friction, out);
+        };
+        run_pass!(
+            self.exec,
+            sums.chunks_mut(BLOCK).enumerate(),
+            sums.par_chunks_mut(BLOCK).enumerate(),
+            TASK_BLOCKS,
+            body
+        );
+        self.touching.sums = sums;
     }
 
     /// Gather x_b − x_a of contacts `range` into `scratch.gap`, and, with
@@ -289,7 +308,7 @@ impl<T: Real> CpuFabric<T> {
         }
         if self.model.self_contact() {
             for (i, link) in self.model.links()[lo..hi].iter().enumerate() {
-                force.set(i, self.touching.force_at(lo + i, link.prev(), force.get(i)));
+                force.set(i, self.touching.force_at(lo + i, link.next().is_some(), link.prev(), force.get(i)));
             }
         }
         let surfaces = self.model.surfaces();
@@ -488,6 +507,7 @@ impl<T: Real> CpuFabric<T> {
                 body
             );
             self.touching.friction = friction;
+            self.segment_sums(true);
         }
         stages::stop(&mut self.clock, "friction", FRICTION, started);
         let started = stages::start(&self.clock);
@@ -522,9 +542,9 @@ impl<T: Real> CpuFabric<T> {
                 }
                 if self_friction {
                     for j in 0..x.x.len() {
-                        if let Some(dv) = this.touching.friction_at(lo + j, this.model.links()[lo + j].prev()) {
-                            (v.x[j], v.y[j], v.z[j]) = (v.x[j] + dv.x, v.y[j] + dv.y, v.z[j] + dv.z);
-                        }
+                        let link = this.model.links()[lo + j];
+                        let dv = this.touching.friction_at(lo + j, link.next().is_some(), link.prev());
+                        (v.x[j], v.y[j], v.z[j]) = (v.x[j] + dv.x, v.y[j] + dv.y, v.z[j] + dv.z);
                     }
                 }
                 if with_colliders {

@@ -5,17 +5,17 @@
 //! Self-contact runs as a Verlet list of segment pairs, rebuilt by
 //! [`yarn_model::self_contact::find_pairs`] when some node has moved half
 //! the skin since the last build or the model's revision changed, and as
-//! two passes over the pairs: *pair forces* (each pair's force on its four
-//! nodes, into its four slots) and *pair friction* (each pair's friction
-//! change and its nodes' shares, from x and v*). Each node then gathers its
-//! slots in the block pass and the move pass: first those of the segment
-//! it starts, then those of the segment it ends, each in the order of the
-//! partner segments. That is the order of the GPU's gather, which keeps a
-//! sorted list per segment, so `Serial<f32>` and `wgpu` agree bit for bit.
-//! No node is written by two threads, and the sum does not depend on the
-//! thread count or on when the list was built (pairs out of reach add
-//! exactly zero). The collider terms are per node and run inside those two
-//! passes.
+//! passes over the pairs: *pair forces* (each pair's force on its four
+//! nodes, into its four slots) and *pair friction* (each pushing pair's
+//! friction change and its nodes' shares, from x and v*). After each, the
+//! *segment sums* (the twin of `pairs.wgsl`) add up each segment's slots on
+//! its first node and on its last, in the order of its partners, and each
+//! node takes the sum of the segment it starts and then of the one it ends,
+//! in the block pass and the move pass. That is the GPU's order, so
+//! `Serial<f32>` and `wgpu` agree bit for bit. No node or segment is
+//! written by two threads, and the sums do not depend on the thread count
+//! or on when the list was built (pairs out of reach add exactly zero).
+//! The collider terms are per node and run inside those two passes.
 //!
 //! This module owns the list, its per-segment entries and the per-pair
 //! arithmetic; `passes.rs` runs the passes.
@@ -57,9 +57,29 @@ pub(crate) struct SelfContacts<T> {
     /// starts at; the node it ends at has the next slot.
     start: Vec<u32>,
     entries: Vec<u32>,
-    /// Per slot: the pair's force on that node, and its friction change.
+    /// Per slot: the pair's force on that node, and its friction change
+    /// (written for pushing pairs only).
     pub(crate) force: Field<T>,
     pub(crate) friction: Field<T>,
+    /// Per segment: its pushing pairs' sums, of the forces or of the
+    /// friction changes, whichever pass ran last.
+    pub(crate) sums: Vec<SegmentSums<T>>,
+}
+
+/// A segment's sums over its pushing pairs, in partner order, on its first
+/// node and on its last, with the longest change on each (friction).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SegmentSums<T> {
+    first: V3<T>,
+    first_longest: T,
+    last: V3<T>,
+    last_longest: T,
+}
+
+impl<T: Real> Default for SegmentSums<T> {
+    fn default() -> Self {
+        Self { first: V3::zeros(), first_longest: T::zero(), last: V3::zeros(), last_longest: T::zero() }
+    }
 }
 
 impl<T: Real> SelfContacts<T> {
@@ -140,6 +160,7 @@ impl<T: Real> SelfContacts<T> {
         let slots = self.nodes.len() * 4;
         self.force = Field::zeros(slots);
         self.friction = Field::zeros(slots);
+        self.sums = vec![SegmentSums::default(); x.len()];
     }
 
     /// The candidate pairs' segments, [a, b] by their first nodes.
@@ -158,25 +179,38 @@ impl<T: Real> SelfContacts<T> {
         self.start.get(s + 1).map_or(&[], |&end| &self.entries[self.start[s] as usize..end as usize])
     }
 
-    /// The slots of the pushing pairs at node `i`: as the start of its own
-    /// segment, then as the end of the segment before it (`prev`), each in
-    /// partner order.
-    fn slots_at(&self, i: usize, prev: Option<u32>) -> [impl Iterator<Item = usize> + '_; 2] {
-        let pushing = move |segment: Option<u32>, node: usize| {
-            let entries = self.entries_of(segment).iter();
-            entries.filter_map(move |&slot| self.active[slot as usize / 4].then_some(slot as usize + node))
-        };
-        [pushing(Some(i as u32), 0), pushing(prev, 1)]
+    /// Segment `s`'s sums over its pushing pairs, from `values` (the force
+    /// or friction slots), on its first node and its last, in partner
+    /// order: the twin of `pairs.wgsl`.
+    fn segment_sums(&self, s: usize, values: &Field<T>, friction: bool) -> SegmentSums<T> {
+        let mut sums = SegmentSums::default();
+        for &slot in self.entries_of(Some(s as u32)).iter().filter(|&&slot| self.active[slot as usize / 4]) {
+            let (first, last) = (values.get(slot as usize), values.get(slot as usize + 1));
+            sums.first += first;
+            sums.last += last;
+            if friction {
+                sums.first_longest = sums.first_longest.max(first.norm());
+                sums.last_longest = sums.last_longest.max(last.norm());
+            }
+        }
+        sums
     }
 
-    /// The self-contact force at node `i` added to `f`: the pushing pairs
-    /// of the segment it starts, summed, then those of the segment it ends
-    /// (`prev`). `f` itself where none pushes.
-    pub(crate) fn force_at(&self, i: usize, prev: Option<u32>, f: V3<T>) -> V3<T> {
-        self.slots_at(i, prev).into_iter().fold(f, |f, mut slots| match slots.next() {
-            Some(first) => f + slots.fold(self.force.get(first), |sum, s| sum + self.force.get(s)),
-            None => f,
-        })
+    /// The segment sums of a block of segments (`out`, from `block`), of
+    /// the forces or, with `friction`, of the friction changes.
+    pub(crate) fn sums_block(&self, block: usize, friction: bool, out: &mut [SegmentSums<T>]) {
+        let values = if friction { &self.friction } else { &self.force };
+        for (k, sums) in out.iter_mut().enumerate() {
+            *sums = self.segment_sums(block * BLOCK + k, values, friction);
+        }
+    }
+
+    /// Node `i`'s self-contact force added to `f`: the sum of the segment
+    /// it starts (`own`: whether it starts one), then that of the one it
+    /// ends (`prev`).
+    pub(crate) fn force_at(&self, i: usize, own: bool, prev: Option<u32>, f: V3<T>) -> V3<T> {
+        let f = if own { f + self.sums[i].first } else { f };
+        prev.map_or(f, |p| f + self.sums[p as usize].last)
     }
 
     /// The force of pairs block `block` on their nodes, into `out`
@@ -208,7 +242,8 @@ impl<T: Real> SelfContacts<T> {
                 self_contact_forces(&p[0], &p[1], &p[2], &p[3], reach, k_sc)
             };
             *active = f.is_some();
-            for (k, f) in f.unwrap_or([V3::zeros(); 4]).into_iter().enumerate() {
+            // A pair that does not push is never read.
+            for (k, f) in f.into_iter().flatten().enumerate() {
                 (out.x[4 * j + k], out.y[4 * j + k], out.z[4 * j + k]) = (f.x, f.y, f.z);
             }
         }
@@ -226,13 +261,8 @@ impl<T: Real> SelfContacts<T> {
         let reach = T::of(2.0 * model.contact_rule().radius());
         let c = model.coeffs();
         let first = block * PAIRS_PER_BLOCK;
-        for j in 0..out.x.len() / 4 {
-            if !self.active[first + j] {
-                for k in 4 * j..4 * j + 4 {
-                    (out.x[k], out.y[k], out.z[k]) = (T::zero(), T::zero(), T::zero());
-                }
-                continue;
-            }
+        // A pair that does not push is never read.
+        for j in (0..out.x.len() / 4).filter(|&j| self.active[first + j]) {
             let nodes = self.nodes[first + j].map(|i| i as usize);
             let (p, w) = (nodes.map(|i| x.get(i)), nodes.map(|i| v.get(i)));
             let dv = self_contact_friction([&p[0], &p[1], &p[2], &p[3]], [&w[0], &w[1], &w[2], &w[3]], reach, c)
@@ -243,21 +273,12 @@ impl<T: Real> SelfContacts<T> {
         }
     }
 
-    /// The friction change at node `i`: the changes of its pushing pairs,
-    /// summed over the segment it starts and then over the one it ends
-    /// (`prev`), the sum [`cap`]ped to the longest change; `None` where no
-    /// pair pushes it.
-    pub(crate) fn friction_at(&self, i: usize, prev: Option<u32>) -> Option<V3<T>> {
-        let mut total: Option<(V3<T>, T)> = None;
-        for mut slots in self.slots_at(i, prev) {
-            let Some(first) = slots.next() else { continue };
-            let dv = self.friction.get(first);
-            let (sum, longest) = slots.fold((dv, dv.norm()), |(sum, longest), s| {
-                let dv = self.friction.get(s);
-                (sum + dv, longest.max(dv.norm()))
-            });
-            total = Some(total.map_or((sum, longest), |(t, l)| (t + sum, l.max(longest))));
-        }
-        total.map(|(sum, longest)| cap(sum, longest))
+    /// The friction change at node `i`: the segment sums of the one it
+    /// starts (`own`: whether it starts one) and the one it ends (`prev`),
+    /// added and [`cap`]ped to the longest change.
+    pub(crate) fn friction_at(&self, i: usize, own: bool, prev: Option<u32>) -> V3<T> {
+        let none = SegmentSums::default();
+        let (own, before) = (if own { &self.sums[i] } else { &none }, prev.map_or(&none, |p| &self.sums[p as usize]));
+        cap(own.first + before.last, own.first_longest.max(before.last_longest))
     }
 }
