@@ -5,7 +5,8 @@
 //
 // `lists` (array<u32>) holds, after a small header:
 // - per node i, a record: the node before it and after it along its yarn
-//   (NONE where none), and how many candidates the segment it starts has;
+//   (NONE where none), how many candidates the segment it starts has, and
+//   which of its first 32 push (`touch.wgsl`'s `segment_sums`);
 // - per node, the position it was at when the lists were last built (the
 //   anchor), as f32 bits;
 // - per segment, its pairs' sums on its first and its last node, written

@@ -111,7 +111,9 @@ const NO_SUMS: Sums = Sums(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
 // Segment s's pushes (`step::accumulate_forces`'s self-contact terms), or
 // with `friction` its friction changes from x and v*
 // (`step::self_contact_friction`); no sums for a node that starts no
-// segment.
+// segment. The pushes also mark which of the first 32 slots push, in the
+// record's last word, and friction visits only those (and any slots past
+// 32): the others would add exactly zero.
 fn segment_sums(s: u32, friction: bool) -> Sums {
     var sums = NO_SUMS;
     let end = segment_end(s);
@@ -119,7 +121,12 @@ fn segment_sums(s: u32, friction: bool) -> Sums {
         return sums;
     }
     let count = lists[record_at(s) + 2u];
+    let pushing = lists[record_at(s) + 3u];
+    var marked = 0u;
     for (var k = 0u; k < count; k++) {
+        if friction && k < 32u && (pushing & (1u << k)) == 0u {
+            continue;
+        }
         let pair = pair_of(s, end, lists[slot_at(s, k)], friction);
         if apart(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1, p.reach) {
             continue;
@@ -129,6 +136,11 @@ fn segment_sums(s: u32, friction: bool) -> Sums {
             values = pair_friction(pair.x, pair.w);
         } else {
             values = pair_forces(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1);
+            let pushes = any(values.p0 != vec3<f32>(0.0)) || any(values.p1 != vec3<f32>(0.0))
+                || any(values.q0 != vec3<f32>(0.0)) || any(values.q1 != vec3<f32>(0.0));
+            if pushes && k < 32u {
+                marked |= 1u << k;
+            }
         }
         let first = first_share(values, pair.s_is_q);
         let last = last_share(values, pair.s_is_q);
@@ -138,6 +150,9 @@ fn segment_sums(s: u32, friction: bool) -> Sums {
             sums.first_longest = max(sums.first_longest, norm(first));
             sums.last_longest = max(sums.last_longest, norm(last));
         }
+    }
+    if !friction {
+        lists[record_at(s) + 3u] = marked;
     }
     return sums;
 }

@@ -65,6 +65,13 @@ pub struct ParetoArgs {
     /// Timed runs per configuration; the median wall time is reported.
     #[arg(long, default_value_t = 3)]
     repeats: usize,
+    /// Self-contact stiffness k_sc of the model [default: the preset's].
+    /// With it on, the reference runs with it, and every configuration
+    /// also runs without it (its backend named `… no self-contact`), so
+    /// the table sets what self-contact costs against the error its
+    /// absence makes.
+    #[arg(long)]
+    self_contact: Option<f64>,
     /// Folder for pareto.csv and pareto.png (created if missing).
     #[arg(long, default_value = "pareto")]
     out: PathBuf,
@@ -86,11 +93,10 @@ impl ParetoArgs {
     /// stitch with `--preset paper`, an unknown backend, a backend failure
     /// other than a refused substep, or a file that cannot be written.
     pub fn run(&self) -> Result<Outcome, GateError> {
-        let patch = Patch {
-            chart: self.pattern.chart(self.size)?,
-            geometry: self.preset.geometry(),
-            params: self.preset.params(),
-        };
+        let preset = self.preset.params();
+        let params =
+            Params { self_contact_stiffness: self.self_contact.unwrap_or(preset.self_contact_stiffness), ..preset };
+        let patch = Patch { chart: self.pattern.chart(self.size)?, geometry: self.preset.geometry(), params };
         // A chart the geometry cannot knit fails here, before any run.
         Fabric::from_chart(&patch.chart, &patch.geometry)?;
         let patch = &patch;
@@ -113,7 +119,8 @@ impl ParetoArgs {
     /// Timed runs per backend: each substep on each problem, `repeats`
     /// times.
     fn runs_per_backend(&self) -> usize {
-        Problem::ALL.len() * self.substeps.len() * self.repeats.max(1)
+        let variants = if self.self_contact.is_some_and(|k| k > 0.0) { 2 } else { 1 };
+        Problem::ALL.len() * self.substeps.len() * self.repeats.max(1) * variants
     }
 
     /// Each problem's reference run, and how far the reference is from
@@ -198,6 +205,37 @@ impl BackendWork for Sweep<'_> {
     fn run<B: Backend>(&mut self, name: &str, mut backend: B) -> Result<Vec<ParetoRow>, GateError> {
         let sim_seconds = CONTROL * f64::from(self.ticks);
         let mut rows = Vec::new();
+        // With self-contact on, each configuration also runs without it.
+        let without =
+            Patch { params: Params { self_contact_stiffness: 0.0, ..self.patch.params }, ..self.patch.clone() };
+        let off_name = format!("{name} no self-contact");
+        let mut variants = vec![(self.patch, name)];
+        if self.patch.params.self_contact_stiffness > 0.0 {
+            variants.push((&without, off_name.as_str()));
+        }
+        for (patch, name) in variants {
+            rows.extend(self.sweep(&mut backend, patch, name, sim_seconds)?);
+        }
+        Ok(rows)
+    }
+
+    fn left_out(&mut self, name: &str, reason: &GpuError) {
+        self.bar.suspend(|| eprintln!("{}", left_out_warning(name, reason)));
+        self.bar.inc(self.args.runs_per_backend() as u64);
+    }
+}
+
+impl Sweep<'_> {
+    /// Every substep on every problem of `patch` on `backend`, its rows
+    /// named `name`.
+    fn sweep<B: Backend>(
+        &self,
+        backend: &mut B,
+        patch: &Patch,
+        name: &str,
+        sim_seconds: f64,
+    ) -> Result<Vec<ParetoRow>, GateError> {
+        let mut rows = Vec::new();
         for &per_tick in &self.args.substeps {
             let per_tick = per_tick.max(1);
             let h = CONTROL / f64::from(per_tick);
@@ -205,7 +243,7 @@ impl BackendWork for Sweep<'_> {
                 self.bar.set_message(format!("{name} {}", problem.name()));
                 let mut runs = Vec::new();
                 for _ in 0..self.args.repeats.max(1) {
-                    runs.push(match run(&mut backend, problem, self.patch, self.ticks, per_tick, CHECKPOINTS) {
+                    runs.push(match run(backend, problem, patch, self.ticks, per_tick, CHECKPOINTS) {
                         Ok(measured) => measured,
                         // An h the parameters refuse: a failed configuration.
                         Err(GateError::Backend(e)) => Run::failed(e.to_string()),
@@ -215,17 +253,12 @@ impl BackendWork for Sweep<'_> {
                 }
                 let wall_s_per_sim_s = median(runs.iter().map(|repeat| repeat.wall_s)) / sim_seconds;
                 if let Some(last) = runs.pop() {
-                    let radius = self.patch.geometry.yarn_radius;
+                    let radius = patch.geometry.yarn_radius;
                     rows.push(ParetoRow::new(problem, name, h, wall_s_per_sim_s, last, reference, radius));
                 }
             }
         }
         Ok(rows)
-    }
-
-    fn left_out(&mut self, name: &str, reason: &GpuError) {
-        self.bar.suspend(|| eprintln!("{}", left_out_warning(name, reason)));
-        self.bar.inc(self.args.runs_per_backend() as u64);
     }
 }
 
@@ -552,7 +585,7 @@ pub fn table(rows: &[ParetoRow]) -> String {
         mine.sort_by(|a, b| a.wall_s_per_sim_s.total_cmp(&b.wall_s_per_sim_s));
         let _ = writeln!(
             out,
-            "{:<6} {:<28} {:>12} {:>12} {:>12} {:>11}  front",
+            "{:<6} {:<44} {:>12} {:>12} {:>12} {:>11}  front",
             problem.name(),
             "config",
             "wall s/sim s",
@@ -569,7 +602,7 @@ pub fn table(rows: &[ParetoRow]) -> String {
             };
             let _ = writeln!(
                 out,
-                "{:<6} {:<28} {:>12.4} {:>12.3e} {:>12.3e} {:>11.2e}  {mark}{}",
+                "{:<6} {:<44} {:>12.4} {:>12.3e} {:>12.3e} {:>11.2e}  {mark}{}",
                 "",
                 r.config,
                 r.wall_s_per_sim_s,
