@@ -200,6 +200,7 @@ impl<T: Real> Backend for Reference<T> {
     fn load(&mut self, fabric: &Fabric, params: &Params) -> Result<(), BackendError> {
         let model = Model::new(fabric, params)?;
         let state = State::at_rest(fabric);
+        model.check_apart(&state.positions)?;
         self.loaded =
             Some(Loaded { model, saved: state.clone(), state, scratch: step::Scratch::default(), substeps: 0 });
         Ok(())
@@ -229,6 +230,7 @@ impl<T: Real> Backend for Reference<T> {
     fn write_state(&mut self, state: &State<T>) -> Result<(), BackendError> {
         let loaded = self.loaded()?;
         state.check_len(loaded.model.node_count())?;
+        loaded.model.check_apart(&state.positions)?;
         loaded.state.clone_from(state);
         Ok(())
     }

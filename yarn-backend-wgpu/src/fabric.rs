@@ -358,6 +358,7 @@ impl GpuFabric {
 
     pub(crate) fn write_state(&mut self, state: &State<f32>) -> Result<(), BackendError> {
         state.check_len(self.model.node_count())?;
+        self.model.check_apart(&state.positions)?;
         let queue = &self.gpu.queue;
         queue.write_buffer(&self.buffers.x[self.parity.x], 0, bytemuck::cast_slice(&vec4s(&state.positions)));
         queue.write_buffer(&self.buffers.v[self.parity.v], 0, bytemuck::cast_slice(&vec4s(&state.velocities)));

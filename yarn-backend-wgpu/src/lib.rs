@@ -247,11 +247,13 @@ impl Backend for Wgpu {
         fabric::refuse_self_contact(self.mode, params)?;
         let model = Model::<f32>::new(fabric, params)?;
         check_fits(&self.gpu, &model)?;
+        let state = State::at_rest(fabric);
+        model.check_apart(&state.positions)?;
         // The fabric is accepted: free the previous one's buffers before
         // making the new ones, so the two never hold memory together.
         self.loaded = None;
         finish(&self.gpu)?;
-        let loaded = GpuFabric::new(Arc::clone(&self.gpu), self.mode, self.fuse_below, model, State::at_rest(fabric));
+        let loaded = GpuFabric::new(Arc::clone(&self.gpu), self.mode, self.fuse_below, model, state);
         self.loaded = Some(loaded);
         finish(&self.gpu)
     }

@@ -378,6 +378,53 @@ pub fn yarns_feel_only_themselves<B: Backend<Real = f32>>(make: impl Fn() -> B) 
     end
 }
 
+/// With self-contact on, a fabric that loads with yarn through yarn, or a
+/// state written so, is refused with `Interpenetrating` naming the pair,
+/// and nothing changes: the fabric before stays loaded, the state before
+/// stays. With it off the same fabric loads.
+///
+/// # Panics
+/// When either is accepted, or anything changed.
+pub fn interpenetrating_starts_are_refused<B: Backend<Real = f32>>(make: impl Fn() -> B) {
+    // Two straight yarns of unit segments crossing at one point.
+    let yarns = |lift: f64| {
+        let along = |i: u32| f64::from(i) - 5.0;
+        Fabric::from_parts(FabricParts {
+            positions: (0..11)
+                .map(|i| Vec3::new(along(i), 0.0, 0.0))
+                .chain((0..11).map(|i| Vec3::new(0.0, along(i), lift)))
+                .collect(),
+            yarns: vec![YarnSpan::open(0..11), YarnSpan::open(11..22)],
+            yarn_radius: Some(0.9),
+            ..FabricParts::default()
+        })
+        .expect("two yarns are valid")
+    };
+    let (through, apart) = (yarns(0.0), yarns(2.0));
+    let on = Params { self_contact_stiffness: 800.0, ..Params::default() };
+    let mut backend = make();
+    let name = backend.name();
+    match backend.load(&through, &on) {
+        Err(BackendError::Interpenetrating { a, b, distance }) => {
+            assert!(a < 11 && b >= 11 && distance < 1e-6, "{name}: segments {a} and {b} at {distance} r");
+        }
+        other => panic!("{name}: yarn through yarn loaded: {other:?}"),
+    }
+    backend.load(&apart, &on).expect("yarns two radii apart load");
+    let before = backend.state().expect("state");
+    let mut pushed = before.clone();
+    for p in &mut pushed.positions[11..] {
+        p.z = 0.3;
+    }
+    assert!(
+        matches!(backend.write_state(&pushed), Err(BackendError::Interpenetrating { .. })),
+        "{name}: a state with yarn through yarn was written"
+    );
+    assert_eq!(backend.state().expect("state"), before, "{name}: the refused state changed it");
+    backend.advance(5).expect("the state before runs on");
+    backend.load(&through, &Params::default()).expect("without self-contact yarn may cross");
+}
+
 /// A closed ring of 24 nodes, a regular polygon of radius 3, at its rest
 /// shape with κ = 1: every force is below f32 rounding (10⁻⁵ of k_s times
 /// the segment length) after one accumulation, and after

@@ -116,8 +116,21 @@ macro_rules! touching {
                     }
                 }
             }
+
+            #[test]
+            fn interpenetrating_starts_are_refused() {
+                if let Some(make) = $make {
+                    conformance::interpenetrating_starts_are_refused(make);
+                }
+            }
         }
     };
+}
+
+/// The reference refuses yarn through yarn too.
+#[test]
+fn the_reference_refuses_interpenetrating_starts() {
+    conformance::interpenetrating_starts_are_refused(yarn_backend_cpu::Reference::<f32>::new);
 }
 
 touching!(serial_f32_touching, cpu(Serial::<f32>::new), Tolerance::CPU_F32);

@@ -93,6 +93,25 @@ pub enum BackendError {
         /// One past its last substep.
         end: u64,
     },
+    /// With self-contact on, the positions given have yarn already deep in
+    /// yarn: two segments that may touch (tethered crossings included)
+    /// closer than [`crate::self_contact::MIN_START_RADII`] yarn radii.
+    /// Self-contact would fling them apart, so the state is refused and the
+    /// one before kept.
+    #[error(
+        "segments {a} and {b} are {distance:.2} r apart, closer than {} r: the yarn given already passes through \
+         itself, and self-contact would fling it apart; separate them first, or turn self-contact off \
+         (`self_contact_stiffness` 0)",
+        crate::self_contact::MIN_START_RADII
+    )]
+    Interpenetrating {
+        /// The segments, by their first nodes.
+        a: u32,
+        /// See `a`.
+        b: u32,
+        /// Their closest distance, in yarn radii.
+        distance: f64,
+    },
     /// The compute device reported an error or was lost.
     #[error("compute device error: {0}")]
     Device(String),

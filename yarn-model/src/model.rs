@@ -360,6 +360,24 @@ impl<T: Real> Model<T> {
         reach / self.params.substep
     }
 
+    /// With self-contact on, refuse positions `x` where two segments that
+    /// may touch, tethered crossings included, are closer than
+    /// [`crate::self_contact::MIN_START_RADII`] yarn radii: yarn already
+    /// deep in yarn, which the penalty would fling apart. Backends check
+    /// the positions a fabric loads at and every state written.
+    ///
+    /// # Errors
+    /// [`BackendError::Interpenetrating`] naming the closest such pair.
+    pub fn check_apart(&self, x: &[V3<T>]) -> Result<(), BackendError> {
+        if !self.self_contact() {
+            return Ok(());
+        }
+        match crate::self_contact::closest_approach(self, x, crate::self_contact::MIN_START_RADII) {
+            Some((distance, [a, b])) => Err(BackendError::Interpenetrating { a, b, distance }),
+            None => Ok(()),
+        }
+    }
+
     /// Whether self-contact is on ([`Params::self_contact_stiffness`] > 0).
     pub fn self_contact(&self) -> bool {
         self.params.self_contact_stiffness > 0.0

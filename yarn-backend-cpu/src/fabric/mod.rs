@@ -89,6 +89,7 @@ impl<T: Real> CpuFabric<T> {
         let model = Model::<T>::new(fabric, params)?;
         let n = model.node_count();
         let state = State::<T>::at_rest(fabric);
+        model.check_apart(&state.positions)?;
         let mut loaded = Self {
             positions: Field::from_vectors(&state.positions),
             velocities: Field::from_vectors(&state.velocities),
@@ -164,6 +165,7 @@ impl<T: Real> CpuFabric<T> {
 
     pub(crate) fn write_state(&mut self, state: &State<T>) -> Result<(), BackendError> {
         state.check_len(self.model.node_count())?;
+        self.model.check_apart(&state.positions)?;
         self.positions = Field::from_vectors(&state.positions);
         self.velocities = Field::from_vectors(&state.velocities);
         self.wake_all();

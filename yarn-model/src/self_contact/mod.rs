@@ -42,6 +42,12 @@ pub const NEAR_ALONG_YARN: f64 = std::f64::consts::PI;
 /// (2r) to crossing, and the contact acts in each.
 pub const MAX_STEP_RADII: f64 = 0.5;
 
+/// How deep in each other, as the distance between their centrelines in
+/// yarn radii, two segments may start when self-contact is on: below one
+/// radius each yarn is more than halfway into the other, a start the
+/// penalty would fling apart ([`Model::check_apart`]).
+pub const MIN_START_RADII: f64 = 1.0;
+
 /// Which segment pairs of a fabric may touch, fixed when it is loaded: per
 /// segment, how many segments after it along its yarn are near it.
 ///
