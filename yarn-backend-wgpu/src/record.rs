@@ -83,32 +83,23 @@ impl GpuFabric {
         if !self.model.self_contact() {
             return;
         }
-        let pipelines = &self.gpu.pipelines;
-        let (groups, counts) = (&self.groups, Some(&self.buffers.rebuild));
-        each(&Dispatch {
-            pass: "plan.wgsl",
+        let (pipelines, groups) = (&self.gpu.pipelines, &self.groups);
+        // The rebuild's passes take their workgroup counts from the plan's.
+        let rebuild = |pass, pipeline, group| Dispatch {
+            pass,
             stages: LISTS,
-            pipeline: &pipelines.plan.entries[0],
-            group: &groups.plan,
+            pipeline,
+            group,
+            workgroups: (0, 0),
+            indirect: Some(&self.buffers.rebuild),
+        };
+        each(&Dispatch {
             workgroups: (1, 1),
             indirect: None,
+            ..rebuild("plan.wgsl", &pipelines.plan.entries[0], &groups.plan)
         });
-        each(&Dispatch {
-            pass: "grid_insert.wgsl",
-            stages: LISTS,
-            pipeline: &pipelines.grid_insert.entries[0],
-            group: groups.grid_insert.at(at),
-            workgroups: (0, 0),
-            indirect: counts,
-        });
-        each(&Dispatch {
-            pass: "grid_find.wgsl",
-            stages: LISTS,
-            pipeline: &pipelines.grid_find.entries[0],
-            group: groups.grid_find.at(at),
-            workgroups: (0, 0),
-            indirect: counts,
-        });
+        each(&rebuild("grid_insert.wgsl", &pipelines.grid_insert.entries[0], groups.grid_insert.at(at)));
+        each(&rebuild("grid_find.wgsl", &pipelines.grid_find.entries[0], groups.grid_find.at(at)));
         each(&self.pair_sums(at, false));
     }
 

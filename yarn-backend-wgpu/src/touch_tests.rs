@@ -55,6 +55,16 @@ fn gpu() -> Option<Arc<Gpu>> {
     testing::shared_gpu()
 }
 
+/// Load `fabric` into `backend` at `state` under `params`. A crumpled state
+/// has yarn through yarn, which a backend with self-contact on refuses to
+/// be given (`Interpenetrating`), so it is written with self-contact off
+/// and then turned on.
+fn place(backend: &mut dyn Backend<Real = f32>, fabric: &Fabric, params: &Params, state: &State<f32>) {
+    backend.load(fabric, &Params { self_contact_stiffness: 0.0, ..*params }).unwrap();
+    backend.write_state(state).unwrap();
+    backend.set_params(params).unwrap();
+}
+
 /// `grid_insert.wgsl` and `grid_find.wgsl` build the twins' lists entry for
 /// entry, at rest, crumpled, and with yarn pulled out long across the patch
 /// (the long list), whatever order their atomics ran in, and anchor every
@@ -71,8 +81,7 @@ fn the_gpu_lists_are_the_twins() {
             }
         }
         let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
-        backend.load(&fabric, &params).unwrap();
-        backend.write_state(&state).unwrap();
+        place(&mut backend, &fabric, &params, &state);
         backend.forces().unwrap();
         let (lists, anchors) = gpu_lists(&backend);
         let twins = grid::lists(backend.model().unwrap(), &state.positions).unwrap();
@@ -97,8 +106,7 @@ fn a_crush_grows_the_lists_or_is_refused_by_name() {
     let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
     let mut serial = Serial::<f32>::new();
     for b in [&mut backend as &mut dyn Backend<Real = f32>, &mut serial] {
-        b.load(&fabric, &params).unwrap();
-        b.write_state(&state).unwrap();
+        place(b, &fabric, &params, &state);
     }
     assert_eq!(backend.forces().unwrap(), serial.forces().unwrap());
     let slots = backend.loaded.as_ref().unwrap().slots;
@@ -113,8 +121,7 @@ fn a_crush_grows_the_lists_or_is_refused_by_name() {
     limits.max_storage_buffer_binding_size = bytes.next_multiple_of(256);
     let narrow = Gpu::with_limits(limits).expect("lower limits than the adapter's open");
     let mut backend = Wgpu::with_gpu(narrow, Mode::Gather);
-    backend.load(&fabric, &params).unwrap();
-    backend.write_state(&state).unwrap();
+    place(&mut backend, &fabric, &params, &state);
     match backend.advance(5) {
         Err(BackendError::TooLarge { what, needed, limit, limit_name }) => {
             assert_eq!(

@@ -266,40 +266,19 @@ pub fn lists<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Result<Vec<Vec<u32>>, Ov
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Params;
     use crate::self_contact::find_pairs;
-    use crate::{Params, State};
-    use yarn_topology::{Chart, Fabric, Geometry};
-
-    /// A crumpled 3x3 stockinette in `T`: each node moved up to `amount`
-    /// along each axis, by a fixed sequence.
-    fn crumpled<T: Real>(fabric: &Fabric, amount: f64) -> Vec<V3<T>> {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
-        State::<f64>::at_rest(fabric)
-            .positions
-            .into_iter()
-            .map(|p| {
-                let q = p + V3::new(next(), next(), next()) * (2.0 * amount);
-                V3::new(T::of(q.x), T::of(q.y), T::of(q.z))
-            })
-            .collect()
-    }
+    use crate::self_contact::tests::crumpled;
 
     /// The lists are the pairs `find_pairs` finds, seen from both sides,
     /// in f64 and in f32, on a crumpled patch and at rest: the grid, the
     /// cell filter and the sort lose and duplicate nothing.
     #[test]
     fn the_lists_hold_every_pair_in_reach_once_from_both_sides() {
-        let fabric = Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::default()).unwrap();
         let params = Params { self_contact_stiffness: 800.0, ..Params::default() };
         for amount in [0.0, 1.8] {
+            let (fabric, x) = crumpled::<f64>(amount);
             let model = Model::<f64>::new(&fabric, &params).unwrap();
-            let x = crumpled::<f64>(&fabric, amount);
             let found = lists(&model, &x).unwrap();
             let mut pairs = Vec::new();
             find_pairs(&model, &x, params.self_contact_skin * fabric.yarn_radius(), &mut pairs);
@@ -318,7 +297,7 @@ mod tests {
             // f32: the same search; pairs at the skin's edge may round
             // either way, so only those within 2r must agree.
             let model32 = Model::<f32>::new(&fabric, &params).unwrap();
-            let x32 = crumpled::<f32>(&fabric, amount);
+            let (_, x32) = crumpled::<f32>(amount);
             let lists32 = lists(&model32, &x32).unwrap();
             for &[a, b] in &pairs {
                 let (a, b) = (a as usize, b as usize);
@@ -335,11 +314,10 @@ mod tests {
     /// stretched past the widest box is refused, not searched.
     #[test]
     fn stretched_segments_are_searched_from_the_long_list_and_their_box() {
-        let fabric = Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::default()).unwrap();
         let params = Params { self_contact_stiffness: 800.0, ..Params::default() };
+        let (fabric, mut x) = crumpled::<f64>(0.5);
         let model = Model::<f64>::new(&fabric, &params).unwrap();
         let shape = GridShape::new(&model);
-        let mut x = crumpled::<f64>(&fabric, 0.5);
         // Three nodes pulled out across the patch, as a grab or a snag does.
         for (node, by) in [(30, 8.0), (31, -6.0), (100, 12.0)] {
             x[node].x += by;

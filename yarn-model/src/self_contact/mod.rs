@@ -353,7 +353,7 @@ impl<T: Real> Candidates<T> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::{Params, State, step};
     use yarn_topology::{Chart, Fabric, FabricParts, Geometry, Pin, Vec3, YarnSpan};
@@ -438,8 +438,8 @@ mod tests {
     }
 
     /// A crumpled 3x3 stockinette: each node moved up to `amount` along
-    /// each axis, by a fixed sequence.
-    fn crumpled(amount: f64) -> (Fabric, Vec<V3<f64>>) {
+    /// each axis, by a fixed sequence, in `T`.
+    pub(super) fn crumpled<T: Real>(amount: f64) -> (Fabric, Vec<V3<T>>) {
         let fabric = Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::default()).unwrap();
         let mut seed = 0x9e37_79b9_7f4a_7c15u64;
         let mut next = move || {
@@ -451,14 +451,14 @@ mod tests {
         let x = State::<f64>::at_rest(&fabric)
             .positions
             .into_iter()
-            .map(|p| p + V3::new(next(), next(), next()) * (2.0 * amount))
+            .map(|p| crate::real::cast(&(p + V3::new(next(), next(), next()) * (2.0 * amount))))
             .collect();
         (fabric, x)
     }
 
     #[test]
     fn the_grid_finds_every_pair_within_reach() {
-        let (fabric, x) = crumpled(2.0 * R);
+        let (fabric, x) = crumpled::<f64>(2.0 * R);
         let params = Params { self_contact_stiffness: 800.0, ..Params::default() };
         let mut model = Model::<f64>::new(&fabric, &params).unwrap();
         let mut found = Vec::new();
@@ -508,7 +508,7 @@ mod tests {
     /// trajectories agree bit for bit.
     #[test]
     fn trajectories_do_not_depend_on_the_skin() {
-        let (fabric, _) = crumpled(0.0);
+        let (fabric, _) = crumpled::<f64>(0.0);
         let run = |skin: f64| {
             let params = Params { self_contact_stiffness: 800.0, self_contact_skin: skin, ..Params::default() };
             let model = Model::<f64>::new(&fabric, &params).unwrap();
