@@ -9,9 +9,8 @@
 
 use std::sync::Arc;
 
-use yarn_model::{BackendError, Model, Rollback, State, V3, advance_with_rollback};
-
 use yarn_model::self_contact::grid::{GridShape, MAX_LONG};
+use yarn_model::{BackendError, Model, Rollback, State, V3, advance_with_rollback};
 
 use crate::bindings::{
     Buffers, Groups, Parity, chain, forces_kernel, gpu_contacts, grid, incidence, lists, lists_bytes, reseat_group,
