@@ -47,7 +47,7 @@ fn pair_friction(x: Quad, w: Quad) -> Quad {
     let n = vec3<f32>(div_rounded(c.gap.x, d), div_rounded(c.gap.y, d), div_rounded(c.gap.z, d));
     let shares = vec4<f32>(p.one - c.s, c.s, p.one - c.t, c.t);
     // Each product is kept whole before it is added (`kept3`): lavapipe
-    // fused these sums in a quarter of the pairs.
+    // fused these sums in about half of 2,048 random pairs.
     let q_side = kept3(mul3(w.q0, shares.z)) + kept3(mul3(w.q1, shares.w));
     let p_side = kept3(mul3(w.p0, shares.x)) + kept3(mul3(w.p1, shares.y));
     let relative = q_side - p_side;
