@@ -6,7 +6,7 @@
 use crate::collider::Surface;
 use crate::self_contact::{Candidates, find_pairs};
 use crate::terms::{
-    bend_energy, bend_forces, closest_gap, gravity_energy, gravity_force, self_contact_energy, self_contact_forces,
+    Closest, bend_energy, bend_forces, gravity_energy, gravity_force, self_contact_energy, self_contact_forces,
     spring_energy, spring_force,
 };
 use crate::{Coefficients, Model, Real, State, V3};
@@ -237,9 +237,19 @@ pub fn self_contact_friction<T: Real>(
     reach: T,
     c: &Coefficients<T>,
 ) -> Option<[V3<T>; 4]> {
-    let (gap, s, t) = closest_gap(x[0], x[1], x[2], x[3]);
-    let d = gap.norm();
-    if !(d < reach && d > T::zero()) {
+    self_contact_friction_at(&Closest::of(x[0], x[1], x[2], x[3]), v, reach, c)
+}
+
+/// [`self_contact_friction`] from the pair's closest points at x.
+#[inline]
+pub fn self_contact_friction_at<T: Real>(
+    closest: &Closest<T>,
+    v: [&V3<T>; 4],
+    reach: T,
+    c: &Coefficients<T>,
+) -> Option<[V3<T>; 4]> {
+    let Closest { gap, distance: d, s, t } = *closest;
+    if !closest.within(reach) {
         return None;
     }
     let n = gap / d;
@@ -362,6 +372,7 @@ pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Sc
 mod tests {
     use super::*;
     use crate::Params;
+    use crate::terms::closest_gap;
     use proptest::prelude::*;
     use std::sync::atomic::{AtomicU64, Ordering};
     use yarn_topology::{Chart, Fabric, FabricParts, Geometry};

@@ -166,9 +166,53 @@ pub fn self_contact_forces<T: Real>(
     reach: T,
     k: T,
 ) -> Option<[V3<T>; 4]> {
-    let (gap, s, t) = closest_gap(p0, p1, q0, q1);
-    let d = gap.norm();
-    if !(d < reach && d > T::zero()) {
+    self_contact_push(&Closest::of(p0, p1, q0, q1), reach, k)
+}
+
+/// The closest points of two segments, p0p1 and q0q1: the vector between
+/// them ([`closest_gap`]), its length and their parameters. Self-contact's
+/// force and friction both start from it, at the same positions, so a
+/// backend may find it once for both.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Closest<T> {
+    /// c_p − c_q.
+    pub gap: V3<T>,
+    /// |c_p − c_q|.
+    pub distance: T,
+    /// c_p's parameter on p0p1.
+    pub s: T,
+    /// c_q's parameter on q0q1.
+    pub t: T,
+}
+
+impl<T: Real> Default for Closest<T> {
+    /// Segments that do not touch.
+    fn default() -> Self {
+        Self { gap: V3::zeros(), distance: T::zero(), s: T::zero(), t: T::zero() }
+    }
+}
+
+impl<T: Real> Closest<T> {
+    /// The closest points of segments p0p1 and q0q1.
+    #[inline]
+    pub fn of(p0: &V3<T>, p1: &V3<T>, q0: &V3<T>, q1: &V3<T>) -> Self {
+        let (gap, s, t) = closest_gap(p0, p1, q0, q1);
+        Self { gap, distance: gap.norm(), s, t }
+    }
+
+    /// Whether the segments touch: closer than `reach`, and their closest
+    /// points apart (so the push has a direction).
+    #[inline]
+    pub fn within(&self, reach: T) -> bool {
+        self.distance < reach && self.distance > T::zero()
+    }
+}
+
+/// [`self_contact_forces`] from the pair's closest points.
+#[inline]
+pub fn self_contact_push<T: Real>(closest: &Closest<T>, reach: T, k: T) -> Option<[V3<T>; 4]> {
+    let Closest { gap, distance: d, s, t } = *closest;
+    if !closest.within(reach) {
         return None;
     }
     let push = gap * (k * (reach - d) / d);

@@ -46,6 +46,7 @@ use yarn_model::{Real, V3};
 use super::CpuFabric;
 use super::field::{BLOCK, BlockMut, Field};
 use super::touching::{self, PAIRS_PER_BLOCK};
+use yarn_model::terms::Closest;
 
 /// Fewest blocks per rayon task (about 12 µs of work): a patch under 1,024
 /// nodes runs on one thread instead of paying to wake another, and larger
@@ -177,17 +178,26 @@ impl<T: Real> CpuFabric<T> {
         }
         let mut force = std::mem::take(&mut self.touching.force);
         let mut active = std::mem::take(&mut self.touching.active);
+        let mut closest = std::mem::take(&mut self.touching.closest);
         let this = &*self;
-        let body = |(block, (mut out, active)): (usize, (BlockMut<'_, T>, &mut [bool]))| {
-            this.touching.forces_block(&this.model, &this.positions, block, (&mut out, active));
+        type PairsBlock<'a, T> = (BlockMut<'a, T>, (&'a mut [bool], &'a mut [Closest<T>]));
+        let body = |(block, (mut out, (active, closest))): (usize, PairsBlock<'_, T>)| {
+            this.touching.forces_block(&this.model, &this.positions, block, (&mut out, active, closest));
         };
         run_pass!(
             self.exec,
-            force.blocks_mut().zip(active.chunks_mut(PAIRS_PER_BLOCK)).enumerate(),
-            force.par_blocks_mut().zip(active.par_chunks_mut(PAIRS_PER_BLOCK)).enumerate(),
+            force
+                .blocks_mut()
+                .zip(active.chunks_mut(PAIRS_PER_BLOCK).zip(closest.chunks_mut(PAIRS_PER_BLOCK)))
+                .enumerate(),
+            force
+                .par_blocks_mut()
+                .zip(active.par_chunks_mut(PAIRS_PER_BLOCK).zip(closest.par_chunks_mut(PAIRS_PER_BLOCK)))
+                .enumerate(),
             TASK_PAIRS,
             body
         );
+        self.touching.closest = closest;
         self.touching.active = active;
         self.touching.force = force;
         self.segment_sums(false);
@@ -496,8 +506,7 @@ impl<T: Real> CpuFabric<T> {
             let mut friction = std::mem::take(&mut self.touching.friction);
             let this = &*self;
             let body = |(block, mut out): (usize, BlockMut<'_, T>)| {
-                let state = (&this.positions, &this.velocities);
-                this.touching.friction_block(&this.model, state, block, &mut out);
+                this.touching.friction_block(&this.model, &this.velocities, block, &mut out);
             };
             run_pass!(
                 self.exec,

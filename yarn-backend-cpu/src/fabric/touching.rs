@@ -23,8 +23,8 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use yarn_model::self_contact::find_pairs;
-use yarn_model::step::{cap, segment_end, self_contact_friction};
-use yarn_model::terms::{closest_gap, self_contact_forces};
+use yarn_model::step::{cap, segment_end, self_contact_friction_at};
+use yarn_model::terms::{Closest, closest_gap, self_contact_push};
 use yarn_model::{Model, Real, V3};
 
 use super::field::{BLOCK, BlockMut, Field};
@@ -49,6 +49,10 @@ pub(crate) struct SelfContacts<T> {
     /// others have zero slots, which the friction pass and the gathers
     /// skip.
     pub(crate) active: Vec<bool>,
+    /// Per pair: its closest points at the last force pass, which the
+    /// friction pass, at the same positions, reuses (written for pushing
+    /// pairs only).
+    pub(crate) closest: Vec<Closest<T>>,
     /// [`Model::revision`] at the last build (0: never built).
     revision: u64,
     builds: u64,
@@ -154,6 +158,8 @@ impl<T: Real> SelfContacts<T> {
             .collect();
         self.moved = vec![T::zero(); x.len()];
         self.active = vec![false; self.nodes.len()];
+        self.closest =
+            vec![Closest { gap: V3::zeros(), distance: T::zero(), s: T::zero(), t: T::zero() }; self.nodes.len()];
         self.anchor.clone_from(x);
         self.revision = model.revision();
         self.builds += 1;
@@ -214,16 +220,17 @@ impl<T: Real> SelfContacts<T> {
     }
 
     /// The force of pairs block `block` on their nodes, into `out`
-    /// (slots 4 × pair + k), and whether each pushes, into `active`:
-    /// [`self_contact_forces`], zero out of reach. A pair whose distance at
-    /// the build, less how far its nodes have moved since, is still out of
-    /// reach cannot touch, and is not measured.
+    /// (slots 4 × pair + k), whether each pushes, into `active`, and the
+    /// closest points of those that do, into `closest`:
+    /// [`yarn_model::terms::self_contact_forces`], zero out of reach. A
+    /// pair whose distance at the build, less how far its nodes have moved
+    /// since, is still out of reach cannot touch, and is not measured.
     pub(crate) fn forces_block(
         &self,
         model: &Model<T>,
         x: &Field<T>,
         block: usize,
-        (out, active): (&mut BlockMut<'_, T>, &mut [bool]),
+        (out, active, closest): (&mut BlockMut<'_, T>, &mut [bool], &mut [Closest<T>]),
     ) {
         let reach = T::of(2.0 * model.contact_rule().radius());
         // A thousandth of a radius for the rounding of the bound's terms.
@@ -231,7 +238,7 @@ impl<T: Real> SelfContacts<T> {
         let k_sc = model.coeffs().self_contact;
         let first = block * PAIRS_PER_BLOCK;
         let moved = |i: u32| self.moved[i as usize];
-        for (j, active) in active.iter_mut().enumerate() {
+        for (j, (active, closest)) in active.iter_mut().zip(closest).enumerate() {
             let nodes = self.nodes[first + j];
             let nearest =
                 self.built_gap[first + j] - moved(nodes[0]).max(moved(nodes[1])) - moved(nodes[2]).max(moved(nodes[3]));
@@ -239,7 +246,8 @@ impl<T: Real> SelfContacts<T> {
                 None
             } else {
                 let p = nodes.map(|i| x.get(i as usize));
-                self_contact_forces(&p[0], &p[1], &p[2], &p[3], reach, k_sc)
+                *closest = Closest::of(&p[0], &p[1], &p[2], &p[3]);
+                self_contact_push(closest, reach, k_sc)
             };
             *active = f.is_some();
             // A pair that does not push is never read.
@@ -249,23 +257,18 @@ impl<T: Real> SelfContacts<T> {
         }
     }
 
-    /// The friction change of pairs block `block` from `x` and `v` (v*),
-    /// into `out`: [`self_contact_friction`], zero where it returns `None`.
-    pub(crate) fn friction_block(
-        &self,
-        model: &Model<T>,
-        (x, v): (&Field<T>, &Field<T>),
-        block: usize,
-        out: &mut BlockMut<'_, T>,
-    ) {
+    /// The friction change of pairs block `block` from x (the force
+    /// pass's closest points) and `v` (v*), into `out`:
+    /// [`yarn_model::step::self_contact_friction`], zero where it returns
+    /// `None`.
+    pub(crate) fn friction_block(&self, model: &Model<T>, v: &Field<T>, block: usize, out: &mut BlockMut<'_, T>) {
         let reach = T::of(2.0 * model.contact_rule().radius());
         let c = model.coeffs();
         let first = block * PAIRS_PER_BLOCK;
         // A pair that does not push is never read.
         for j in (0..out.x.len() / 4).filter(|&j| self.active[first + j]) {
-            let nodes = self.nodes[first + j].map(|i| i as usize);
-            let (p, w) = (nodes.map(|i| x.get(i)), nodes.map(|i| v.get(i)));
-            let dv = self_contact_friction([&p[0], &p[1], &p[2], &p[3]], [&w[0], &w[1], &w[2], &w[3]], reach, c)
+            let w = self.nodes[first + j].map(|i| v.get(i as usize));
+            let dv = self_contact_friction_at(&self.closest[first + j], [&w[0], &w[1], &w[2], &w[3]], reach, c)
                 .unwrap_or([V3::zeros(); 4]);
             for (k, dv) in dv.into_iter().enumerate() {
                 (out.x[4 * j + k], out.y[4 * j + k], out.z[4 * j + k]) = (dv.x, dv.y, dv.z);
