@@ -74,13 +74,12 @@ fn keep(i: u32, j: u32, count: u32) -> u32 {
         return count;
     }
     if count < p.slots {
-        let first = slot_at(i, 0u);
         var k = count;
-        while k > 0u && lists[first + k - 1u] > j {
-            lists[first + k] = lists[first + k - 1u];
+        while k > 0u && lists[slot_at(i, k - 1u)] > j {
+            lists[slot_at(i, k)] = lists[slot_at(i, k - 1u)];
             k -= 1u;
         }
-        lists[first + k] = j;
+        lists[slot_at(i, k)] = j;
     }
     return count + 1u;
 }
@@ -103,13 +102,11 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
         atomicStore(&grid[other + b], EMPTY);
     }
     let at = x[i].xyz;
-    let anchor = anchor_at(i);
-    lists[anchor] = bitcast<u32>(at.x);
-    lists[anchor + 1u] = bitcast<u32>(at.y);
-    lists[anchor + 2u] = bitcast<u32>(at.z);
-    let record = record_at(i);
-    let end = lists[record + 1u];
-    lists[record + 2u] = 0u;
+    lists[anchor_at(i, 0u)] = bitcast<u32>(at.x);
+    lists[anchor_at(i, 1u)] = bitcast<u32>(at.y);
+    lists[anchor_at(i, 2u)] = bitcast<u32>(at.z);
+    let end = segment_end(i);
+    lists[field_at(i, COUNT)] = 0u;
     let long_count = atomicLoad(&grid[LONG_COUNT]);
     if end == NONE {
         return;
@@ -160,7 +157,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     for (var k = 0u; k < long_count; k++) {
         count = keep(i, atomicLoad(&grid[long_at(k)]), count);
     }
-    lists[record + 2u] = min(count, p.slots);
+    lists[field_at(i, COUNT)] = min(count, p.slots);
     if count > p.slots {
         atomicOr(&status[0], CROWDED);
         atomicMax(&status[1], count);

@@ -3,16 +3,19 @@
 // `grid_find.wgsl`, `plan.wgsl`, `check.wgsl`), which declare `p`, `x` and
 // `lists`.
 //
-// `lists` (array<u32>) holds, after a small header:
-// - per node i, a record: the node before it and after it along its yarn
+// `lists` (array<u32>) holds, after a small header, rows of one word per
+// node (or per segment, which node i starts), each row a field, so that
+// neighbouring threads read and write neighbouring words:
+// - the node's record: the node before it and after it along its yarn
 //   (NONE where none), how many candidates the segment it starts has, and
 //   which of its first 32 push (`touch.wgsl`'s `segment_sums`);
-// - per node, the position it was at when the lists were last built (the
-//   anchor), as f32 bits;
-// - per segment, its pairs' sums on its first and its last node, written
-//   by `pairs.wgsl` and read by the node passes, as f32 bits (x, y, z and,
-//   for friction, the longest change);
-// - per segment, `p.slots` candidate slots: the partner segments, sorted.
+// - the position it was at when the lists were last built (the anchor), as
+//   f32 bits, x, y and z (and one row unused);
+// - its segment's pairs' sums on its first and its last node, written by
+//   `pairs.wgsl` and read by the node passes, as f32 bits (x, y, z and, for
+//   friction, the longest change, on the first node, then on the last);
+// - `p.slots` candidate rows: the partner segments, sorted, slot k of
+//   every segment in row k.
 
 // `lists[STALE]`: some node has moved half the skin since the last build
 // (set by the move, read by `plan.wgsl`); `lists[SPEEDING]`: some node's v*
@@ -22,26 +25,37 @@ const STALE: u32 = 0u;
 const SPEEDING: u32 = 1u;
 const RECORDS: u32 = 4u;
 
-// Where node i's record, and its anchor, start; where segment s's slots do.
-fn record_at(i: u32) -> u32 {
-    return RECORDS + 4u * i;
+// Rows of the record, after the header.
+const PREV: u32 = 0u;
+const NEXT: u32 = 1u;
+const COUNT: u32 = 2u;
+const PUSHING: u32 = 3u;
+const ANCHOR: u32 = 4u;
+const SUMS: u32 = 8u;
+const SLOTS: u32 = 16u;
+
+// Where field `row` of node (or segment) i is.
+fn field_at(i: u32, row: u32) -> u32 {
+    return RECORDS + row * p.nodes + i;
 }
 
-fn anchor_at(i: u32) -> u32 {
-    return RECORDS + 4u * (p.nodes + i);
+// Component c of node i's anchor.
+fn anchor_at(i: u32, c: u32) -> u32 {
+    return field_at(i, ANCHOR + c);
 }
 
-fn sums_at(s: u32) -> u32 {
-    return RECORDS + 8u * p.nodes + 8u * s;
+// Word w of segment s's sums (0–3 on its first node, 4–7 on its last).
+fn sums_at(s: u32, w: u32) -> u32 {
+    return field_at(s, SUMS + w);
 }
 
 fn slot_at(s: u32, k: u32) -> u32 {
-    return RECORDS + 16u * p.nodes + s * p.slots + k;
+    return field_at(s, SLOTS + k);
 }
 
 // The node segment s ends at (NONE where none starts at s).
 fn segment_end(s: u32) -> u32 {
-    return lists[record_at(s) + 1u];
+    return lists[field_at(s, NEXT)];
 }
 
 // `terms::closest_parameters` and `terms::closest_gap`: the vector between

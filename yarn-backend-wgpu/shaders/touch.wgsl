@@ -120,8 +120,8 @@ fn segment_sums(s: u32, friction: bool) -> Sums {
     if end == NONE {
         return sums;
     }
-    let count = lists[record_at(s) + 2u];
-    let pushing = lists[record_at(s) + 3u];
+    let count = lists[field_at(s, COUNT)];
+    let pushing = lists[field_at(s, PUSHING)];
     var marked = 0u;
     for (var k = 0u; k < count; k++) {
         if friction && k < 32u && (pushing & (1u << k)) == 0u {
@@ -152,18 +152,17 @@ fn segment_sums(s: u32, friction: bool) -> Sums {
         }
     }
     if !friction {
-        lists[record_at(s) + 3u] = marked;
+        lists[field_at(s, PUSHING)] = marked;
     }
     return sums;
 }
 
 // Write segment s's sums where the node passes read them.
 fn store_sums(s: u32, sums: Sums) {
-    let at = sums_at(s);
     let words = array<f32, 8>(sums.first.x, sums.first.y, sums.first.z, sums.first_longest, sums.last.x,
                               sums.last.y, sums.last.z, sums.last_longest);
-    for (var k = 0u; k < 8u; k++) {
-        lists[at + k] = bitcast<u32>(words[k]);
+    for (var w = 0u; w < 8u; w++) {
+        lists[sums_at(s, w)] = bitcast<u32>(words[w]);
     }
 }
 
@@ -173,8 +172,9 @@ fn stored_sum(s: u32, on_last: bool) -> vec4<f32> {
     if s == NONE || segment_end(s) == NONE {
         return vec4<f32>(0.0);
     }
-    let at = sums_at(s) + select(0u, 4u, on_last);
-    return bitcast<vec4<f32>>(vec4<u32>(lists[at], lists[at + 1u], lists[at + 2u], lists[at + 3u]));
+    let w = select(0u, 4u, on_last);
+    return bitcast<vec4<f32>>(
+        vec4<u32>(lists[sums_at(s, w)], lists[sums_at(s, w + 1u)], lists[sums_at(s, w + 2u)], lists[sums_at(s, w + 3u)]));
 }
 
 // Node i's self-contact force added to `f`: the sum of the segment it
@@ -183,7 +183,7 @@ fn with_self_contact(f: vec3<f32>, i: u32) -> vec3<f32> {
     if (p.flags & SELF_CONTACT) == 0u {
         return f;
     }
-    return f + stored_sum(i, false).xyz + stored_sum(lists[record_at(i)], true).xyz;
+    return f + stored_sum(i, false).xyz + stored_sum(lists[field_at(i, PREV)], true).xyz;
 }
 
 // `step::cap`: `sum` cut back to the length `longest`.
@@ -201,7 +201,7 @@ fn self_contact_friction(i: u32) -> vec3<f32> {
         return vec3<f32>(0.0);
     }
     let own = stored_sum(i, false);
-    let before = stored_sum(lists[record_at(i)], true);
+    let before = stored_sum(lists[field_at(i, PREV)], true);
     return cap(own.xyz + before.xyz, max(own.w, before.w));
 }
 
@@ -220,8 +220,8 @@ fn watch_move(i: u32, at: vec3<f32>) {
     if (p.flags & SELF_CONTACT) == 0u {
         return;
     }
-    let a = anchor_at(i);
-    let d = at - vec3<f32>(bitcast<f32>(lists[a]), bitcast<f32>(lists[a + 1u]), bitcast<f32>(lists[a + 2u]));
+    let d = at - vec3<f32>(bitcast<f32>(lists[anchor_at(i, 0u)]), bitcast<f32>(lists[anchor_at(i, 1u)]),
+                           bitcast<f32>(lists[anchor_at(i, 2u)]));
     // A NaN fails the comparison, so it rebuilds too.
     if !(dot3(d, d) <= mul(p.half_skin, p.half_skin)) {
         lists[STALE] = 1u;

@@ -146,10 +146,11 @@ pub(crate) fn lists(model: &Model<f32>, slots: u32) -> Vec<u32> {
     let n = model.node_count();
     let mut lists = vec![0u32; 4 + 16 * n + slots as usize * n];
     lists[0] = 1;
+    // The rows of `lists.wgsl`: PREV, then NEXT.
     for (i, link) in model.links().iter().enumerate() {
         let [prev, next] = link.raw();
-        lists[4 + 4 * i] = prev;
-        lists[4 + 4 * i + 1] = next;
+        lists[4 + i] = prev;
+        lists[4 + n + i] = next;
     }
     lists
 }

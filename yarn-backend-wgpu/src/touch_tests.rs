@@ -33,20 +33,13 @@ fn crumpled(amount: f32, squeeze: f32) -> (Fabric, State<f32>) {
 fn gpu_lists(backend: &Wgpu) -> (Vec<Vec<u32>>, Vec<V3<f32>>) {
     let loaded = backend.loaded.as_ref().unwrap();
     let n = loaded.model.node_count();
-    let slots = loaded.slots as usize;
     let bytes = loaded.read(&loaded.buffers.lists, crate::bindings::lists_bytes(n, loaded.slots)).unwrap();
     let words: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
-    let lists = (0..n)
-        .map(|i| {
-            let count = words[4 + 4 * i + 2] as usize;
-            words[4 + 16 * n + slots * i..][..count].to_vec()
-        })
-        .collect();
+    // Field `row` of node i (`lists.wgsl`'s `field_at`).
+    let field = |i: usize, row: usize| words[4 + row * n + i];
+    let lists = (0..n).map(|i| (0..field(i, 2) as usize).map(|k| field(i, 16 + k)).collect()).collect();
     let anchors = (0..n)
-        .map(|i| {
-            let a = &words[4 + 4 * (n + i)..][..3];
-            V3::new(f32::from_bits(a[0]), f32::from_bits(a[1]), f32::from_bits(a[2]))
-        })
+        .map(|i| V3::new(f32::from_bits(field(i, 4)), f32::from_bits(field(i, 5)), f32::from_bits(field(i, 6))))
         .collect();
     (lists, anchors)
 }
