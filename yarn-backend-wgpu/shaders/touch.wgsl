@@ -173,8 +173,9 @@ fn stored_sum(s: u32, on_last: bool) -> vec4<f32> {
         return vec4<f32>(0.0);
     }
     let w = select(0u, 4u, on_last);
-    return bitcast<vec4<f32>>(
-        vec4<u32>(lists[sums_at(s, w)], lists[sums_at(s, w + 1u)], lists[sums_at(s, w + 2u)], lists[sums_at(s, w + 3u)]));
+    let words = vec4<u32>(lists[sums_at(s, w)], lists[sums_at(s, w + 1u)], lists[sums_at(s, w + 2u)],
+                          lists[sums_at(s, w + 3u)]);
+    return bitcast<vec4<f32>>(words);
 }
 
 // Node i's self-contact force added to `f`: the sum of the segment it
