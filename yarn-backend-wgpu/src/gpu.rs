@@ -124,7 +124,16 @@ impl Gpu {
     async fn open(limits: Option<wgpu::Limits>) -> Result<Arc<Self>, GpuError> {
         // Vulkan, Metal, DX12 or the browser's WebGPU (WGPU_BACKEND overrides):
         // compute needs no GL fallback, and probing for one only adds noise.
-        let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle();
+        // wgpu checks an indirect dispatch's workgroup counts with a compute
+        // pass of its own before it: about 7 µs each on the H200, twice a
+        // substep with self-contact, whether the lists are rebuilt or not.
+        // The only indirect dispatches here are the rebuild's, whose counts
+        // `plan.wgsl` writes as zero or from `Gpu::groups`, within
+        // `max_compute_workgroups_per_dimension`. WGPU_VALIDATION_INDIRECT_CALL=1
+        // turns the check back on.
+        descriptor.flags.remove(wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL);
+        let mut descriptor = descriptor.with_env();
         descriptor.backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY);
         let instance = wgpu::Instance::new(descriptor);
         let adapter = instance
