@@ -40,13 +40,12 @@ use std::sync::atomic::Ordering;
 
 use yarn_model::stages::{self, Stage};
 use yarn_model::step::collider_friction;
-use yarn_model::terms::{MIN_SIN_THETA, gravity_force};
+use yarn_model::terms::{Closest, MIN_SIN_THETA, gravity_force};
 use yarn_model::{Real, V3};
 
 use super::CpuFabric;
 use super::field::{BLOCK, BlockMut, Field};
 use super::touching::{self, PAIRS_PER_BLOCK};
-use yarn_model::terms::Closest;
 
 /// Fewest blocks per rayon task (about 12 µs of work): a patch under 1,024
 /// nodes runs on one thread instead of paying to wake another, and larger

@@ -158,8 +158,7 @@ impl<T: Real> SelfContacts<T> {
             .collect();
         self.moved = vec![T::zero(); x.len()];
         self.active = vec![false; self.nodes.len()];
-        self.closest =
-            vec![Closest { gap: V3::zeros(), distance: T::zero(), s: T::zero(), t: T::zero() }; self.nodes.len()];
+        self.closest = vec![Closest::default(); self.nodes.len()];
         self.anchor.clone_from(x);
         self.revision = model.revision();
         self.builds += 1;
