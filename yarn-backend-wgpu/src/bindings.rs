@@ -136,6 +136,24 @@ impl Buffers {
     }
 }
 
+/// Rows of the candidate lists after their 4-word header (`lists.wgsl`'s
+/// `field_at`): field `row` of node i is word `4 + row × nodes + i`.
+pub(crate) mod rows {
+    pub(crate) const PREV: usize = 0;
+    pub(crate) const NEXT: usize = 1;
+    /// Only the GPU writes these; the tests read them back.
+    #[cfg(test)]
+    pub(crate) const COUNT: usize = 2;
+    #[cfg(test)]
+    pub(crate) const ANCHOR: usize = 4;
+    pub(crate) const SLOTS: usize = 16;
+
+    /// Where field `row` of node i lies in lists of `nodes` nodes.
+    pub(crate) fn at(nodes: usize, i: usize, row: usize) -> usize {
+        4 + row * nodes + i
+    }
+}
+
 /// The candidate lists of `model` (`lists.wgsl`) with `slots` slots per
 /// segment, empty and marked stale so the first substep builds them: a
 /// 16-byte stand-in with self-contact off.
@@ -144,20 +162,19 @@ pub(crate) fn lists(model: &Model<f32>, slots: u32) -> Vec<u32> {
         return vec![0; 4];
     }
     let n = model.node_count();
-    let mut lists = vec![0u32; 4 + 16 * n + slots as usize * n];
+    let mut lists = vec![0u32; rows::at(n, 0, rows::SLOTS + slots as usize)];
     lists[0] = 1;
-    // The rows of `lists.wgsl`: PREV, then NEXT.
     for (i, link) in model.links().iter().enumerate() {
         let [prev, next] = link.raw();
-        lists[4 + i] = prev;
-        lists[4 + n + i] = next;
+        lists[rows::at(n, i, rows::PREV)] = prev;
+        lists[rows::at(n, i, rows::NEXT)] = next;
     }
     lists
 }
 
 /// Bytes of [`lists`] for `nodes` nodes and `slots` slots.
 pub(crate) fn lists_bytes(nodes: usize, slots: u32) -> u64 {
-    4 * (4 + (16 + u64::from(slots)) * nodes as u64)
+    4 * (4 + (rows::SLOTS as u64 + u64::from(slots)) * nodes as u64)
 }
 
 /// The rule of `model`'s self-contact and its tethered pairs

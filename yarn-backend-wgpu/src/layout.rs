@@ -285,6 +285,18 @@ mod tests {
         assert!(common.contains(&format!("const CROWDED: u32 = {CROWDED}u;")), "CROWDED differs");
         assert!(common.contains(&format!("const STRETCHED: u32 = {STRETCHED}u;")), "STRETCHED differs");
         assert!(common.contains(&format!("const SELF_CONTACT: u32 = {SELF_CONTACT}u;")), "SELF_CONTACT differs");
+        use crate::bindings::rows;
+        let lists = shaders::LISTS;
+        for (name, row) in [
+            ("PREV", rows::PREV),
+            ("NEXT", rows::NEXT),
+            ("COUNT", rows::COUNT),
+            ("ANCHOR", rows::ANCHOR),
+            ("SLOTS", rows::SLOTS),
+        ] {
+            assert!(lists.contains(&format!("const {name}: u32 = {row}u;")), "{name} differs");
+        }
+        assert!(lists.contains("const RECORDS: u32 = 4u;"), "the lists' header differs");
         let grid = shaders::GRID;
         use yarn_model::self_contact::grid::{MAX_BOX, MAX_LONG};
         assert!(grid.contains(&format!("const MAX_LONG: u32 = {MAX_LONG}u;")));

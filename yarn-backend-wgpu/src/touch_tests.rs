@@ -8,6 +8,7 @@ use yarn_model::self_contact::grid;
 use yarn_model::{Backend, BackendError, Params, State, V3};
 use yarn_topology::{Chart, Fabric, Geometry};
 
+use crate::bindings::rows;
 use crate::fabric::FIRST_SLOTS;
 use crate::{Gpu, Mode, Wgpu, testing};
 
@@ -35,12 +36,11 @@ fn gpu_lists(backend: &Wgpu) -> (Vec<Vec<u32>>, Vec<V3<f32>>) {
     let n = loaded.model.node_count();
     let bytes = loaded.read(&loaded.buffers.lists, crate::bindings::lists_bytes(n, loaded.slots)).unwrap();
     let words: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
-    // Field `row` of node i (`lists.wgsl`'s `field_at`).
-    let field = |i: usize, row: usize| words[4 + row * n + i];
-    let lists = (0..n).map(|i| (0..field(i, 2) as usize).map(|k| field(i, 16 + k)).collect()).collect();
-    let anchors = (0..n)
-        .map(|i| V3::new(f32::from_bits(field(i, 4)), f32::from_bits(field(i, 5)), f32::from_bits(field(i, 6))))
-        .collect();
+    let field = |i: usize, row: usize| words[rows::at(n, i, row)];
+    let lists =
+        (0..n).map(|i| (0..field(i, rows::COUNT) as usize).map(|k| field(i, rows::SLOTS + k)).collect()).collect();
+    let anchor = |i: usize, c: usize| f32::from_bits(field(i, rows::ANCHOR + c));
+    let anchors = (0..n).map(|i| V3::new(anchor(i, 0), anchor(i, 1), anchor(i, 2))).collect();
     (lists, anchors)
 }
 
