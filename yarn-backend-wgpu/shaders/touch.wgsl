@@ -108,12 +108,55 @@ struct Sums {
 
 const NO_SUMS: Sums = Sums(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
 
+// Add the pair in slot k of a segment's list to the segment's `sums`: its
+// push, or with `friction` its friction change. A push marks slot k in
+// `marked` (the first 32).
+fn add_pair(sums: ptr<function, Sums>, marked: ptr<function, u32>, pair: Pair, friction: bool, k: u32) {
+    if apart(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1, p.reach) {
+        return;
+    }
+    var values: Quad;
+    if friction {
+        values = pair_friction(pair.x, pair.w);
+    } else {
+        values = pair_forces(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1);
+        let pushes = any(values.p0 != vec3<f32>(0.0)) || any(values.p1 != vec3<f32>(0.0))
+            || any(values.q0 != vec3<f32>(0.0)) || any(values.q1 != vec3<f32>(0.0));
+        if pushes && k < 32u {
+            *marked |= 1u << k;
+        }
+    }
+    let first = first_share(values, pair.s_is_q);
+    let last = last_share(values, pair.s_is_q);
+    (*sums).first += first;
+    (*sums).last += last;
+    if friction {
+        (*sums).first_longest = max((*sums).first_longest, norm(first));
+        (*sums).last_longest = max((*sums).last_longest, norm(last));
+    }
+}
+
+// The first slot at or after k of a list of `count` that the pass visits
+// (`count` where none is left): the pushes visit every slot; friction only
+// those of the first 32 that `pushing` marks, and any past 32.
+fn next_slot(k: u32, count: u32, pushing: u32, friction: bool) -> u32 {
+    var at = k;
+    while friction && at < min(count, 32u) && (pushing & (1u << at)) == 0u {
+        at++;
+    }
+    return at;
+}
+
 // Segment s's pushes (`step::accumulate_forces`'s self-contact terms), or
 // with `friction` its friction changes from x and v*
 // (`step::self_contact_friction`); no sums for a node that starts no
 // segment. The pushes also mark which of the first 32 slots push, in the
 // record's last word, and friction visits only those (and any slots past
 // 32): the others would add exactly zero.
+//
+// The slots go two at a time: both pairs are loaded before either is
+// summed, so that their loads overlap. On the H200 at a million nodes this
+// took friction from 117 to 92 µs a substep (the pushes stayed at 97).
 fn segment_sums(s: u32, friction: bool) -> Sums {
     var sums = NO_SUMS;
     let end = segment_end(s);
@@ -123,33 +166,18 @@ fn segment_sums(s: u32, friction: bool) -> Sums {
     let count = lists[field_at(s, COUNT)];
     let pushing = lists[field_at(s, PUSHING)];
     var marked = 0u;
-    for (var k = 0u; k < count; k++) {
-        if friction && k < 32u && (pushing & (1u << k)) == 0u {
-            continue;
-        }
+    var k = next_slot(0u, count, pushing, friction);
+    while k < count {
+        let after = next_slot(k + 1u, count, pushing, friction);
         let pair = pair_of(s, end, lists[slot_at(s, k)], friction);
-        if apart(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1, p.reach) {
-            continue;
+        // Where k is the last, its own pair again, unused.
+        let next_pair = pair_of(s, end, lists[slot_at(s, select(k, after, after < count))], friction);
+        add_pair(&sums, &marked, pair, friction, k);
+        if after >= count {
+            break;
         }
-        var values: Quad;
-        if friction {
-            values = pair_friction(pair.x, pair.w);
-        } else {
-            values = pair_forces(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1);
-            let pushes = any(values.p0 != vec3<f32>(0.0)) || any(values.p1 != vec3<f32>(0.0))
-                || any(values.q0 != vec3<f32>(0.0)) || any(values.q1 != vec3<f32>(0.0));
-            if pushes && k < 32u {
-                marked |= 1u << k;
-            }
-        }
-        let first = first_share(values, pair.s_is_q);
-        let last = last_share(values, pair.s_is_q);
-        sums.first += first;
-        sums.last += last;
-        if friction {
-            sums.first_longest = max(sums.first_longest, norm(first));
-            sums.last_longest = max(sums.last_longest, norm(last));
-        }
+        add_pair(&sums, &marked, next_pair, friction, after);
+        k = next_slot(after + 1u, count, pushing, friction);
     }
     if !friction {
         lists[field_at(s, PUSHING)] = marked;
@@ -157,13 +185,18 @@ fn segment_sums(s: u32, friction: bool) -> Sums {
     return sums;
 }
 
-// Write segment s's sums where the node passes read them.
+// Write segment s's sums where the node passes read them, word by word:
+// from a local array indexed in a loop, the H200 took 11–13 µs longer per
+// pass at a million nodes.
 fn store_sums(s: u32, sums: Sums) {
-    let words = array<f32, 8>(sums.first.x, sums.first.y, sums.first.z, sums.first_longest, sums.last.x,
-                              sums.last.y, sums.last.z, sums.last_longest);
-    for (var w = 0u; w < 8u; w++) {
-        lists[sums_at(s, w)] = bitcast<u32>(words[w]);
-    }
+    lists[sums_at(s, 0u)] = bitcast<u32>(sums.first.x);
+    lists[sums_at(s, 1u)] = bitcast<u32>(sums.first.y);
+    lists[sums_at(s, 2u)] = bitcast<u32>(sums.first.z);
+    lists[sums_at(s, 3u)] = bitcast<u32>(sums.first_longest);
+    lists[sums_at(s, 4u)] = bitcast<u32>(sums.last.x);
+    lists[sums_at(s, 5u)] = bitcast<u32>(sums.last.y);
+    lists[sums_at(s, 6u)] = bitcast<u32>(sums.last.z);
+    lists[sums_at(s, 7u)] = bitcast<u32>(sums.last_longest);
 }
 
 // Segment s's sum on its first node (`on_last` false) or its last, with

@@ -172,7 +172,7 @@ impl<T: Real> CpuFabric<T> {
             return;
         }
         if self.touching.stale(&self.model, &self.positions, self.exec) {
-            self.touching.rebuild(&self.model, &self.positions);
+            self.touching.rebuild(&self.model, &self.positions, self.exec);
             self.sleep.set_touching(&self.model, self.touching.segment_pairs());
         }
         let mut force = std::mem::take(&mut self.touching.force);

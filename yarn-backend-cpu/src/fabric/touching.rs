@@ -22,7 +22,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use yarn_model::self_contact::find_pairs;
+use yarn_model::self_contact::PairSearch;
 use yarn_model::step::{cap, segment_end, self_contact_friction_at};
 use yarn_model::terms::{Closest, closest_gap, self_contact_push};
 use yarn_model::{Model, Real, V3};
@@ -119,12 +119,12 @@ impl<T: Real> SelfContacts<T> {
         far.into_inner()
     }
 
-    /// Rebuild the list at `x`, with its incidence and buffers.
-    pub(crate) fn rebuild(&mut self, model: &Model<T>, x: &Field<T>) {
+    /// Rebuild the list at `x`, with its incidence and buffers; the search
+    /// runs as `exec` runs passes.
+    pub(crate) fn rebuild(&mut self, model: &Model<T>, x: &Field<T>, exec: super::Exec) {
         let mut positions = Vec::new();
         x.to_vectors(&mut positions);
-        let mut pairs = Vec::new();
-        find_pairs(model, &positions, model.params().self_contact_skin * model.contact_rule().radius(), &mut pairs);
+        let pairs = find_pairs(model, &positions, exec);
         self.nodes = pairs
             .iter()
             .map(|&[a, b]| [a, segment_end(model, a as usize) as u32, b, segment_end(model, b as usize) as u32])
@@ -284,3 +284,35 @@ impl<T: Real> SelfContacts<T> {
         cap(own.first + before.last, own.first_longest.max(before.last_longest))
     }
 }
+
+/// [`yarn_model::self_contact::find_pairs`] at `positions` with the
+/// model's skin, its search's pieces run as `exec` runs passes: the same
+/// pairs, sorted.
+fn find_pairs<T: Real>(model: &Model<T>, positions: &[V3<T>], exec: super::Exec) -> Vec<[u32; 2]> {
+    let search = PairSearch::new(model, positions, model.params().self_contact_skin * model.contact_rule().radius());
+    let mut pairs = Vec::new();
+    match exec {
+        super::Exec::Sequential => {
+            search.find(0..search.pieces(), &mut pairs);
+            pairs.sort_unstable();
+        }
+        super::Exec::Parallel => {
+            use rayon::prelude::*;
+            let pieces = search.pieces();
+            let found: Vec<Vec<[u32; 2]>> = (0..pieces.div_ceil(PIECES_PER_TASK))
+                .into_par_iter()
+                .map(|task| {
+                    let mut pairs = Vec::new();
+                    search.find(task * PIECES_PER_TASK..pieces.min((task + 1) * PIECES_PER_TASK), &mut pairs);
+                    pairs
+                })
+                .collect();
+            pairs = found.concat();
+            pairs.par_sort_unstable();
+        }
+    }
+    pairs
+}
+
+/// Cells of the pair search per parallel task.
+const PIECES_PER_TASK: usize = 4096;

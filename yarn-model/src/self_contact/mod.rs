@@ -205,17 +205,70 @@ impl Tethers {
 
 /// Every pair of segments `[a, b]`, `a` < `b`, that may touch under the
 /// model's rule and whose closest distance at `x` is below 2r + `skin`,
-/// sorted, into `out`.
+/// sorted, into `out`. [`PairSearch`] finds the same pairs in pieces.
 pub fn find_pairs<T: Real>(model: &Model<T>, x: &[V3<T>], skin: f64, out: &mut Vec<[u32; 2]>) {
     out.clear();
-    let tethers = Tethers::of(model);
-    let reach = 2.0 * model.contact_rule().radius() + skin;
-    search(model, x, reach, |a, b, d| {
-        if d < reach && !tethers.contains(a, b) {
-            out.push([a, b]);
-        }
-    });
+    let search = PairSearch::new(model, x, skin);
+    search.find(0..search.pieces(), out);
     out.sort_unstable();
+}
+
+/// [`find_pairs`]' search, split into pieces that can run in any order or
+/// at once: each piece is one cell of the search grid, and finds the pairs
+/// of the segments whose midpoints lie in it with those in the cells
+/// around, so that no pair is found by two pieces. Sorted, the pairs of
+/// every piece are `find_pairs`'. A range of neighbouring pieces is
+/// searched faster than each alone.
+///
+/// ```
+/// use yarn_model::self_contact::{PairSearch, find_pairs};
+/// use yarn_model::{Model, Params, State};
+/// use yarn_topology::{Chart, Fabric, Geometry};
+///
+/// let fabric = Fabric::from_chart(&Chart::stockinette(4, 4)?, &Geometry::default())?;
+/// let model = Model::<f64>::new(&fabric, &Params::default())?;
+/// let x = State::<f64>::at_rest(&fabric).positions;
+/// let search = PairSearch::new(&model, &x, 0.5);
+/// let mut pieces = Vec::new();
+/// // Last piece first: the order does not matter.
+/// for piece in (0..search.pieces()).rev() {
+///     search.find(piece..piece + 1, &mut pieces);
+/// }
+/// pieces.sort_unstable();
+/// let mut whole = Vec::new();
+/// find_pairs(&model, &x, 0.5, &mut whole);
+/// assert_eq!(pieces, whole);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug)]
+pub struct PairSearch<'m, T: Real> {
+    model: &'m Model<T>,
+    cells: SegmentCells,
+    tethers: Tethers,
+    reach: f64,
+}
+
+impl<'m, T: Real> PairSearch<'m, T> {
+    /// The search for the pairs closer than 2r + `skin` at `x`.
+    pub fn new(model: &'m Model<T>, x: &[V3<T>], skin: f64) -> Self {
+        let reach = 2.0 * model.contact_rule().radius() + skin;
+        Self { model, cells: SegmentCells::new(model, x, reach), tethers: Tethers::of(model), reach }
+    }
+
+    /// How many pieces the search has.
+    pub fn pieces(&self) -> usize {
+        self.cells.runs()
+    }
+
+    /// Append to `out`, unsorted, the pairs that `pieces` find.
+    pub fn find(&self, pieces: std::ops::Range<usize>, out: &mut Vec<[u32; 2]>) {
+        let reach = self.reach;
+        self.cells.visit(self.model.contact_rule(), pieces, &mut |a, b, d| {
+            if d < reach && !self.tethers.contains(a, b) {
+                out.push([a, b]);
+            }
+        });
+    }
 }
 
 /// The closest two segments at `x` that are not near each other along
@@ -253,58 +306,113 @@ pub fn pairs_within<T: Real>(model: &Model<T>, x: &[V3<T>], within: f64, out: &m
 /// near along their yarn, with their closest distance d at `x`, for at
 /// least every pair closer than `reach` (others may be visited too).
 fn search<T: Real>(model: &Model<T>, x: &[V3<T>], reach: f64, mut visit: impl FnMut(u32, u32, f64)) {
-    let rule = model.contact_rule();
-    let links = model.links();
-    let ends = |a: usize| Some((widen(&x[a]), widen(&x[links[a].next()? as usize])));
-    let segments: Vec<(usize, nalgebra::Vector3<f64>, nalgebra::Vector3<f64>)> =
-        (0..x.len()).filter_map(|a| ends(a).map(|(p, q)| (a, p, q))).collect();
-    let longest = segments.iter().map(|(_, p, q)| (q - p).norm()).fold(0.0, f64::max);
-    // Two segments within `reach` have midpoints within longest + reach:
-    // in the same or a neighbouring cell.
-    let cell = longest + reach;
-    if !(cell > 0.0 && cell.is_finite()) {
-        return;
+    let cells = SegmentCells::new(model, x, reach);
+    cells.visit(model.contact_rule(), 0..cells.runs(), &mut visit);
+}
+
+/// The segments at `x` sorted into cubic cells by their midpoints, cells
+/// large enough that two segments within the reach lie in the same cell or
+/// in neighbouring ones.
+#[derive(Debug, Default)]
+struct SegmentCells {
+    /// Per segment: its first node and its two ends.
+    segments: Vec<(usize, nalgebra::Vector3<f64>, nalgebra::Vector3<f64>)>,
+    half_lengths: Vec<f64>,
+    /// Each segment's cell, and its index in `segments`, sorted by cell.
+    cells: Vec<([i64; 3], usize)>,
+    /// Where each run of one cell starts in `cells`, then `cells.len()`.
+    run_starts: Vec<usize>,
+    reach: f64,
+}
+
+impl SegmentCells {
+    /// No cells where no segment has a finite length.
+    fn new<T: Real>(model: &Model<T>, x: &[V3<T>], reach: f64) -> Self {
+        let links = model.links();
+        let ends = |a: usize| Some((widen(&x[a]), widen(&x[links[a].next()? as usize])));
+        let segments: Vec<_> = (0..x.len()).filter_map(|a| ends(a).map(|(p, q)| (a, p, q))).collect();
+        let longest = segments.iter().map(|(_, p, q)| (q - p).norm()).fold(0.0, f64::max);
+        // Two segments within `reach` have midpoints within longest + reach:
+        // in the same or a neighbouring cell.
+        let cell = longest + reach;
+        if !(cell > 0.0 && cell.is_finite()) {
+            return Self::default();
+        }
+        let key = |p: &nalgebra::Vector3<f64>, q: &nalgebra::Vector3<f64>| {
+            let m = (p + q) * (0.5 / cell);
+            [m.x.floor() as i64, m.y.floor() as i64, m.z.floor() as i64]
+        };
+        let mut cells: Vec<_> = segments.iter().enumerate().map(|(k, (_, p, q))| (key(p, q), k)).collect();
+        cells.sort_unstable();
+        let half_lengths = segments.iter().map(|(_, p, q)| 0.5 * (q - p).norm()).collect();
+        let mut run_starts: Vec<usize> = (0..cells.len()).filter(|&k| k == 0 || cells[k].0 != cells[k - 1].0).collect();
+        run_starts.push(cells.len());
+        Self { segments, half_lengths, cells, run_starts, reach }
     }
-    let key = |p: &nalgebra::Vector3<f64>, q: &nalgebra::Vector3<f64>| {
-        let m = (p + q) * (0.5 / cell);
-        [m.x.floor() as i64, m.y.floor() as i64, m.z.floor() as i64]
-    };
-    let mut cells: Vec<([i64; 3], usize)> = segments.iter().enumerate().map(|(k, (_, p, q))| (key(p, q), k)).collect();
-    cells.sort_unstable();
-    let half_lengths: Vec<f64> = segments.iter().map(|(_, p, q)| 0.5 * (q - p).norm()).collect();
-    let mut start = 0;
-    // Cell by cell: the 27 cells around are looked up once per cell, not
-    // once per segment.
-    while start < cells.len() {
-        let [cx, cy, cz] = cells[start].0;
-        let end = start + cells[start..].partition_point(|(c, _)| *c == cells[start].0);
-        let near: Vec<&[([i64; 3], usize)]> = (-1..=1)
-            .flat_map(|i| (-1..=1).flat_map(move |j| (-1..=1).map(move |l| [cx + i, cy + j, cz + l])))
-            .map(|cell| {
-                let first = cells.partition_point(|(c, _)| *c < cell);
-                let last = first + cells[first..].partition_point(|(c, _)| *c == cell);
-                &cells[first..last]
-            })
-            .filter(|run| !run.is_empty())
-            .collect();
-        for &(_, k) in &cells[start..end] {
-            let (a, p0, p1) = segments[k];
-            let middle = (p0 + p1) * 0.5;
-            for &(_, m) in near.iter().copied().flatten() {
-                let (b, q0, q1) = segments[m];
-                if b <= a || rule.near_along_yarn(a, b) {
-                    continue;
+
+    /// How many runs of one cell there are.
+    fn runs(&self) -> usize {
+        self.run_starts.len().saturating_sub(1)
+    }
+
+    /// Call `visit(a, b, d)`, `a` < `b`, for the pairs that runs `runs`
+    /// find: each segment of a run with every segment after it in `cells`
+    /// that lies in one of the 27 cells around. For each of the nine
+    /// columns of three cells (one x and y, three z), which lie together in
+    /// `cells`, the sweep keeps where the column starts and ends; as the
+    /// runs go up in cell order, those only move forward.
+    fn visit(&self, rule: &ContactRule, runs: std::ops::Range<usize>, visit: &mut impl FnMut(u32, u32, f64)) {
+        let (cells, reach) = (&self.cells, self.reach);
+        let columns = || (-1..=1).flat_map(|i| (-1..=1).map(move |j| (i, j)));
+        let mut bounds = [(0usize, 0usize); 9];
+        for run in runs {
+            let (start, end) = (self.run_starts[run], self.run_starts[run + 1]);
+            let [cx, cy, cz] = cells[start].0;
+            for ((i, j), (first, last)) in columns().zip(&mut bounds) {
+                let (low, high) = ([cx + i, cy + j, cz - 1], [cx + i, cy + j, cz + 1]);
+                *first = seek(cells, *first, |c| *c < low);
+                *last = seek(cells, (*last).max(*first), |c| *c <= high);
+            }
+            for (own, &(_, k)) in (start..end).zip(&cells[start..end]) {
+                let (a, p0, p1) = self.segments[k];
+                let middle = (p0 + p1) * 0.5;
+                for &(first, last) in &bounds {
+                    for &(_, m) in &cells[first.max(own + 1)..last.max(own + 1)] {
+                        let (b, q0, q1) = self.segments[m];
+                        let (low, high) = (a.min(b), a.max(b));
+                        if rule.near_along_yarn(low, high) {
+                            continue;
+                        }
+                        // No point of two segments is nearer than their
+                        // midpoints' distance less their half lengths.
+                        if (middle - (q0 + q1) * 0.5).norm() - self.half_lengths[k] - self.half_lengths[m]
+                            > reach * (1.0 + 1e-9)
+                        {
+                            continue;
+                        }
+                        // From the lower-numbered segment, as every search
+                        // measures a pair.
+                        let gap = if a < b { closest_gap(&p0, &p1, &q0, &q1) } else { closest_gap(&q0, &q1, &p0, &p1) };
+                        visit(low as u32, high as u32, gap.0.norm());
+                    }
                 }
-                // No point of two segments is nearer than their midpoints'
-                // distance less their half lengths.
-                if (middle - (q0 + q1) * 0.5).norm() - half_lengths[k] - half_lengths[m] > reach * (1.0 + 1e-9) {
-                    continue;
-                }
-                visit(a as u32, b as u32, closest_gap(&p0, &p1, &q0, &q1).0.norm());
             }
         }
-        start = end;
     }
+}
+
+/// The first index at or after `from` whose cell fails `before`, where
+/// every cell that passes it comes before every cell that fails it: a
+/// step at a time while the answer is near, then by halves.
+fn seek(cells: &[([i64; 3], usize)], from: usize, before: impl Fn(&[i64; 3]) -> bool) -> usize {
+    let mut at = from;
+    for _ in 0..8 {
+        match cells.get(at) {
+            Some((c, _)) if before(c) => at += 1,
+            _ => return at,
+        }
+    }
+    at + cells[at..].partition_point(|(c, _)| before(c))
 }
 
 /// A Verlet list of the segment pairs that may touch: every pair within
@@ -454,6 +562,26 @@ pub(super) mod tests {
             .map(|p| crate::real::cast(&(p + V3::new(next(), next(), next()) * (2.0 * amount))))
             .collect();
         (fabric, x)
+    }
+
+    #[test]
+    fn the_search_in_pieces_finds_what_it_finds_whole() {
+        let (fabric, x) = crumpled::<f64>(2.0 * R);
+        let model = Model::<f64>::new(&fabric, &Params::default()).unwrap();
+        let mut whole = Vec::new();
+        find_pairs(&model, &x, 0.5 * R, &mut whole);
+        assert!(whole.len() > 100, "a crumpled patch has many close pairs: {}", whole.len());
+        let search = PairSearch::new(&model, &x, 0.5 * R);
+        for size in [1, 7, search.pieces()] {
+            let mut pieces = Vec::new();
+            let starts: Vec<usize> = (0..search.pieces()).step_by(size).collect();
+            // Last range first: the order does not matter.
+            for &start in starts.iter().rev() {
+                search.find(start..search.pieces().min(start + size), &mut pieces);
+            }
+            pieces.sort_unstable();
+            assert_eq!(pieces, whole, "pieces of {size}");
+        }
     }
 
     #[test]
