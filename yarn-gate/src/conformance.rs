@@ -838,11 +838,17 @@ pub mod strategy {
                     *x += random_vec(jiggle);
                     *v = random_vec(speed);
                 }
-                let pins = (0..fabric.node_count() as u32)
+                let pins: Vec<Pin> = (0..fabric.node_count() as u32)
                     .filter(|_| next() < pin_fraction)
                     .map(|node| Pin { node, target: fabric.positions()[node as usize] })
                     .collect();
                 let alive = (0..fabric.contacts().len()).map(|_| next() >= dead_fraction).collect();
+                // A sleeping scene that no pin holds has no gravity: it would
+                // fall for ever, at g/β once damping balances gravity, and
+                // below the sleep speed its blocks would sleep in mid-air
+                // while the reference, which never sleeps, goes on falling
+                // (docs/conformance.md).
+                let params = if sleeps && pins.is_empty() { Params { gravity: 0.0, ..params } } else { params };
                 Scene { state: state.cast(), fabric, params, pins, alive, colliders: Vec::new() }
             },
         )
