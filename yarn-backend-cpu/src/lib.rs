@@ -509,6 +509,33 @@ mod tests {
         check::<Rayon>((Rayon::with_threads(2).unwrap(), Rayon::sleeping_blocks));
     }
 
+    /// A block that is slow but speeding up is not settling, so it does not
+    /// sleep: the straight yarn falls from rest under gravity, undamped, at
+    /// g t, which stays under the sleep speed for 600 substeps (0.4 of it)
+    /// while rising at every look. A rule on speed alone froze it in mid-air
+    /// after [`yarn_model::SLEEP_AFTER`] substeps. Once gravity is off it
+    /// drifts at a steady speed, still under the sleep speed, and sleeps.
+    #[test]
+    fn a_block_speeding_up_from_rest_stays_awake() {
+        fn check<B: Backend>((mut backend, sleeping): Sleeper<B>) {
+            let params = Params { sleep_speed: 1.0, gravity: -1.0, damping: 0.0, ..Params::default() };
+            backend.load(&straight_yarn(Vec::new()), &params).unwrap();
+            let name = backend.name();
+            for _ in 0..60 {
+                backend.advance(10).unwrap();
+                assert_eq!(sleeping(&backend), 0, "{name}: a block falling from rest fell asleep");
+            }
+            let fastest = backend.state().unwrap().velocities.iter().map(|v| v.norm().to_f64()).fold(0.0, f64::max);
+            assert!(fastest < params.sleep_speed, "{name}: fell at {fastest}, past the sleep speed");
+            backend.set_params(&Params { gravity: 0.0, ..params }).unwrap();
+            backend.advance(u64::from(yarn_model::SLEEP_AFTER)).unwrap();
+            assert_eq!(sleeping(&backend), 3, "{name}: the steady drift did not fall asleep");
+        }
+        check::<Serial<f32>>((Serial::new(), Serial::sleeping_blocks));
+        check::<Serial<f64>>((Serial::new(), Serial::sleeping_blocks));
+        check::<Rayon>((Rayon::with_threads(2).unwrap(), Rayon::sleeping_blocks));
+    }
+
     /// Equal bit for bit (so -0 differs from 0, and a NaN equals itself):
     /// `assert_eq!` on the bits, naming the first node that differs rather
     /// than printing thousands.

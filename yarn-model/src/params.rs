@@ -50,7 +50,9 @@ pub struct Params {
     /// instability, as `yarn-gate stress` does.
     pub substep_limit: f64,
     /// Sleeping (CPU backends): a block of nodes whose speeds all stay
-    /// below this for [`SLEEP_AFTER`] substeps stops being integrated until
+    /// below this for [`SLEEP_AFTER`] substeps, its fastest never faster
+    /// than when the run began (a block speeding up is not settling),
+    /// stops being integrated until
     /// a neighbouring block moves at twice this speed, a pin lands in it,
     /// or the parameters, state or contacts change. 0 never sleeps
     /// (default: 0).
@@ -75,8 +77,8 @@ pub struct Params {
     pub collider_stiffness: f64,
 }
 
-/// Substeps a block must stay below [`Params::sleep_speed`] before it
-/// sleeps.
+/// Substeps a block must stay below [`Params::sleep_speed`], and not speed
+/// up, before it sleeps.
 pub const SLEEP_AFTER: u32 = 100;
 
 /// The fraction of the analytic bound 2/ω_max below which the explicit

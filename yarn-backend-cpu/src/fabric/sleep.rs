@@ -1,7 +1,7 @@
 //! Sleeping (see [`yarn_model::Params::sleep_speed`]): blocks of nodes that
-//! have stayed slow for [`yarn_model::SLEEP_AFTER`] substeps stop being
-//! integrated until a neighbouring block moves fast, a pin lands in them,
-//! or the scene changes.
+//! have stayed slow, and not sped up, for [`yarn_model::SLEEP_AFTER`]
+//! substeps stop being integrated until a neighbouring block moves fast, a
+//! pin lands in them, or the scene changes.
 //!
 //! This module owns which blocks sleep and why they wake. It does not run
 //! the passes; they skip the blocks it reports asleep, and the caller
@@ -20,8 +20,13 @@ pub(crate) const SLEEP_CHECK: u64 = 10;
 pub(crate) struct Sleep {
     /// Asleep (not integrated).
     asleep: Vec<bool>,
-    /// Substeps its nodes have all stayed below the sleep speed.
+    /// Substeps its nodes have all stayed below the sleep speed without
+    /// speeding up.
     quiet: Vec<u32>,
+    /// Its fastest node's speed squared at the first look of its quiet
+    /// run (meaningless while `quiet` is 0), which no later look of the run
+    /// may pass.
+    quiet_since2: Vec<f64>,
     /// The other blocks it shares a segment or a contact with.
     neighbours: Vec<Vec<u32>>,
     /// The other blocks it has a self-contact candidate pair with, from the
@@ -36,6 +41,7 @@ impl Sleep {
         Self {
             asleep: vec![false; blocks],
             quiet: vec![0; blocks],
+            quiet_since2: vec![0.0; blocks],
             neighbours: neighbours(model, blocks),
             touching: vec![Vec::new(); blocks],
         }
@@ -85,7 +91,8 @@ impl Sleep {
     }
 
     /// Every [`SLEEP_CHECK`] substeps: count quiet substeps, put blocks
-    /// that have stayed below `limit` long enough (with no pin and no fast
+    /// that have stayed below `limit`, and below their speed at the first
+    /// look of the run, long enough (with no pin and no fast
     /// neighbour) to sleep, with their velocities zeroed and their next
     /// positions at their positions, and wake sleepers next to a block
     /// moving at twice `limit`. Returns whether any block changed.
@@ -132,8 +139,15 @@ impl Sleep {
                 }
                 continue;
             }
-            self.quiet[block] =
-                if speed2[block] < sleep2 && !pinned[block] { self.quiet[block] + SLEEP_CHECK as u32 } else { 0 };
+            // Slow but faster than when it turned slow is not settling: a
+            // block pushed from rest would be frozen short of where it goes.
+            let slow = speed2[block] < sleep2 && !pinned[block];
+            if !slow || self.quiet[block] == 0 || speed2[block] > self.quiet_since2[block] {
+                (self.quiet[block], self.quiet_since2[block]) = (0, speed2[block]);
+            }
+            if slow {
+                self.quiet[block] += SLEEP_CHECK as u32;
+            }
             if self.quiet[block] >= yarn_model::SLEEP_AFTER && !fast_neighbour(block) {
                 (self.asleep[block], changed) = (true, true);
                 let range = block * BLOCK..((block + 1) * BLOCK).min(positions.len());
