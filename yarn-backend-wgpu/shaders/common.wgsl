@@ -103,8 +103,9 @@ const FRICTION_ON: u32 = 1u;
 // Bit 1: the device's `fma` rounds once (`Gpu::new` tests it), so the
 // correction steps below are exact and are taken.
 const FUSED_FMA: u32 = 2u;
-// Bits of `status[0]`, which the host reads and clears after each batch: a
-// fixed-point force or sum overflowed; the state diverged.
+// Bits of `status[0]`, which the host reads and clears after each batch
+// (in the browser, when the page asks): a fixed-point force or sum
+// overflowed; the state diverged.
 const OVERFLOWED: u32 = 1u;
 const DIVERGED: u32 = 2u;
 // More self-contact candidates near a segment than its list holds

@@ -23,7 +23,7 @@ use crate::layout::{
 };
 use crate::record::Dispatch;
 use crate::timing::Timestamps;
-use crate::{Checkpoint, FIXED_POINT_SCALE, Mode, WORKGROUP};
+use crate::{Checkpoint, FIXED_POINT_SCALE, Mode, Raised, WORKGROUP};
 
 /// A fabric on the GPU.
 #[derive(Debug)]
@@ -51,6 +51,12 @@ pub(crate) struct GpuFabric {
     /// found more than the slots hold: the lists grow and the batch runs
     /// again.
     crowded: Option<u32>,
+    /// Whether the status stays on the GPU across batches until
+    /// [`crate::Wgpu::read_raised`] takes it, instead of being waited for
+    /// at the end of each: in the browser, where nothing may wait.
+    pub(crate) deferred_status: bool,
+    /// Substeps since load when the deferred status was last taken.
+    raised_since: u64,
 }
 
 /// Slots per segment's candidate list at load: at rest a segment of the
@@ -159,6 +165,8 @@ impl GpuFabric {
             timestamps: None,
             slots: FIRST_SLOTS,
             crowded: None,
+            deferred_status: cfg!(target_arch = "wasm32"),
+            raised_since: 0,
         };
         fabric.upload_pins();
         fabric
@@ -429,18 +437,29 @@ impl GpuFabric {
         loop {
             let result = work(self);
             let Some(needed) = self.crowded.take() else { return result };
-            let slots = needed.next_power_of_two().max(2 * self.slots);
-            fits_binding(
-                &self.gpu,
-                "the self-contact candidate lists (bytes)",
-                lists_bytes(self.model.node_count(), slots),
-            )?;
-            self.slots = slots;
-            // New lists start stale; the grid and its rebuild count stay.
-            self.buffers.lists = storage(&self.gpu.device, "lists", &lists(&self.model, slots));
-            self.groups = Groups::new(&self.gpu, self.mode, &self.buffers);
-            self.write_params();
+            self.grow_lists(needed)?;
         }
+    }
+
+    /// Make the candidate lists hold at least `needed` candidates a
+    /// segment: double the slots, or more, and remake the lists stale.
+    ///
+    /// # Errors
+    /// [`BackendError::TooLarge`] naming the binding limit when lists that
+    /// large do not fit the device; the lists are then kept.
+    pub(crate) fn grow_lists(&mut self, needed: u32) -> Result<(), BackendError> {
+        let slots = needed.next_power_of_two().max(2 * self.slots);
+        fits_binding(
+            &self.gpu,
+            "the self-contact candidate lists (bytes)",
+            lists_bytes(self.model.node_count(), slots),
+        )?;
+        self.slots = slots;
+        // New lists start stale; the grid and its rebuild count stay.
+        self.buffers.lists = storage(&self.gpu.device, "lists", &lists(&self.model, slots));
+        self.groups = Groups::new(&self.gpu, self.mode, &self.buffers);
+        self.write_params();
+        Ok(())
     }
 
     /// Copy `bytes` of `buffer` back to the CPU, waiting for the device.
@@ -462,6 +481,17 @@ impl GpuFabric {
         buffer: &wgpu::Buffer,
         bytes: u64,
     ) -> impl std::future::Future<Output = Result<Vec<u8>, BackendError>> + 'static {
+        self.read_async_then(buffer, bytes, |_| ())
+    }
+
+    /// [`Self::read_async`], with `then` recorded after the copy in the
+    /// same submission.
+    fn read_async_then(
+        &self,
+        buffer: &wgpu::Buffer,
+        bytes: u64,
+        then: impl FnOnce(&mut wgpu::CommandEncoder),
+    ) -> impl std::future::Future<Output = Result<Vec<u8>, BackendError>> + 'static {
         let device = &self.gpu.device;
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
@@ -471,12 +501,33 @@ impl GpuFabric {
         });
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
         encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes);
+        then(&mut encoder);
         self.gpu.queue.submit([encoder.finish()]);
         let gpu = Arc::clone(&self.gpu);
         async move {
             let bytes = read_mapped(&gpu.device, &staging).await.map_err(BackendError::Device)?;
             gpu.take_error().map_err(BackendError::Device)?;
             Ok(bytes)
+        }
+    }
+
+    /// Take the deferred status without waiting: copy it back and clear it
+    /// in one submission. The future borrows nothing.
+    pub(crate) fn read_raised(&mut self) -> impl std::future::Future<Output = Result<Raised, BackendError>> + 'static {
+        let (first, end) = (self.raised_since, self.substeps);
+        self.raised_since = end;
+        let status = &self.buffers.status;
+        let bytes = self.read_async_then(status, 16, |encoder| encoder.clear_buffer(status, 0, None));
+        async move {
+            let [bits, crowd]: [u32; 2] = bytemuck::pod_read_unaligned(&bytes.await?[..8]);
+            Ok(Raised {
+                first,
+                end,
+                overflowed: bits & OVERFLOWED != 0,
+                diverged: bits & DIVERGED != 0,
+                overstretched: bits & STRETCHED != 0,
+                crowded: (bits & CROWDED != 0).then_some(crowd),
+            })
         }
     }
 
@@ -488,8 +539,11 @@ impl GpuFabric {
     }
 
     /// End a submission by copying the status to its mappable twin and
-    /// clearing it for the next.
+    /// clearing it for the next; a deferred status stays where it is.
     pub(crate) fn record_status(&self, encoder: &mut wgpu::CommandEncoder) {
+        if self.deferred_status {
+            return;
+        }
         encoder.copy_buffer_to_buffer(&self.buffers.status, 0, &self.buffers.status_readback, 0, 16);
         encoder.clear_buffer(&self.buffers.status, 0, None);
     }
@@ -497,10 +551,11 @@ impl GpuFabric {
     /// Wait for the GPU, then read the status the batch of substeps
     /// `first..end` raised (copied by [`Self::record_status`], so this is
     /// the only wait): a fixed-point overflow, or a diverged state, which
-    /// the read-back state then names. In the browser, where nothing may
-    /// wait, only device errors are reported.
+    /// the read-back state then names. A deferred status, which nothing
+    /// waits for, reports only device errors here and the rest through
+    /// [`crate::Wgpu::read_raised`].
     fn check_status(&mut self, first: u64, end: u64) -> Result<(), BackendError> {
-        if cfg!(target_arch = "wasm32") {
+        if self.deferred_status {
             return finish(&self.gpu);
         }
         let status = pollster::block_on(read_mapped(&self.gpu.device, &self.buffers.status_readback))

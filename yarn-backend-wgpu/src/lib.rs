@@ -136,6 +136,36 @@ pub struct Checkpoint {
     pub state: State<f32>,
 }
 
+/// What the GPU raised over the substeps `first..end`, read by
+/// [`Wgpu::read_raised`] in the browser, where [`Backend::advance`] cannot
+/// wait for the GPU to say. Natively each is an error of the call that
+/// raised it, with the state put back; here the substeps have run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Raised {
+    /// Substeps since load at the read before.
+    pub first: u64,
+    /// Substeps since load at this read.
+    pub end: u64,
+    /// A fixed-point force overflowed ([`BackendError::Overflow`]).
+    pub overflowed: bool,
+    /// A velocity passed the divergence speed ([`BackendError::Diverged`]).
+    pub diverged: bool,
+    /// Yarn stretched past what the self-contact search covers
+    /// ([`BackendError::Overstretched`]).
+    pub overstretched: bool,
+    /// More self-contact candidates lay near one segment than its list
+    /// holds: the most there were. Those substeps ran without the ones
+    /// left over; [`Wgpu::grow_lists`] makes room.
+    pub crowded: Option<u32>,
+}
+
+impl Raised {
+    /// Nothing was raised.
+    pub fn is_clear(&self) -> bool {
+        !self.overflowed && !self.diverged && !self.overstretched && self.crowded.is_none()
+    }
+}
+
 impl Wgpu {
     /// A backend on its own GPU context.
     ///
@@ -218,6 +248,42 @@ impl Wgpu {
         let loaded = self.loaded.as_ref().ok_or(BackendError::NotLoaded)?;
         let bytes = loaded.read_async(loaded.positions(), (loaded.model.node_count() * 16) as u64);
         Ok(async move { Ok(vectors(&bytes.await?)) })
+    }
+
+    /// What the GPU raised since the last read ([`Raised`]), taken without
+    /// blocking: the copy back and the clear are submitted now, and the
+    /// future borrows nothing. In the browser the batches leave their
+    /// status on the GPU for this; natively [`Backend::advance`] waits for
+    /// it and turns it into errors, so this reads clear.
+    ///
+    /// # Errors
+    /// [`BackendError::NotLoaded`] before load; [`BackendError::Device`]
+    /// when the device fails.
+    pub fn read_raised(
+        &mut self,
+    ) -> Result<impl std::future::Future<Output = Result<Raised, BackendError>> + 'static, BackendError> {
+        Ok(self.loaded()?.read_raised())
+    }
+
+    /// Make the self-contact candidate lists hold at least `needed`
+    /// candidates a segment, as [`Backend::advance`] does on its own
+    /// natively when a batch finds them crowded; for the browser, after
+    /// [`Raised::crowded`]. Returns the slots each list now has.
+    ///
+    /// # Errors
+    /// [`BackendError::NotLoaded`] before load; [`BackendError::TooLarge`]
+    /// naming the binding limit when lists that long do not fit the
+    /// device, with the lists kept.
+    pub fn grow_lists(&mut self, needed: u32) -> Result<u32, BackendError> {
+        let loaded = self.loaded()?;
+        loaded.grow_lists(needed)?;
+        Ok(loaded.slots)
+    }
+
+    /// Slots in each segment's self-contact candidate list; `None` before
+    /// load.
+    pub fn list_slots(&self) -> Option<u32> {
+        self.loaded.as_ref().map(|loaded| loaded.slots)
     }
 
     fn loaded(&mut self) -> Result<&mut GpuFabric, BackendError> {

@@ -10,7 +10,7 @@ use yarn_topology::{Chart, Fabric, Geometry};
 
 use crate::bindings::rows;
 use crate::fabric::FIRST_SLOTS;
-use crate::{Gpu, Mode, Wgpu, testing};
+use crate::{Gpu, Mode, Raised, Wgpu, testing};
 
 /// A 3x3 stockinette with each node moved up to `amount` along each axis
 /// and then every position scaled by `squeeze` about the origin.
@@ -126,6 +126,42 @@ fn a_crush_grows_the_lists_or_is_refused_by_name() {
         other => panic!("expected TooLarge, got {other:?}"),
     }
     assert_eq!(backend.state().unwrap(), state, "the refused batch is put back");
+}
+
+/// Where the batches leave their status on the GPU (the browser, where
+/// nothing may wait), a crush does not fail the advance: the batch runs
+/// without the candidates its lists had no room for, and
+/// [`Wgpu::read_raised`] then says how many the most crowded segment had,
+/// once. [`Wgpu::grow_lists`] makes room, after which the forces and a
+/// trajectory are `Serial<f32>`'s bit for bit and nothing more is raised.
+#[test]
+fn where_nothing_may_wait_a_crush_is_raised_and_the_lists_grow() {
+    let Some(gpu) = gpu() else { return };
+    let params = Params { self_contact_stiffness: 200.0, sleep_speed: 0.0, substep: 1.0 / 6000.0, ..Params::default() };
+    let (fabric, state) = crumpled(0.5, 0.35);
+    let twins = grid::lists(&yarn_model::Model::<f32>::new(&fabric, &params).unwrap(), &state.positions).unwrap();
+    let most = twins.iter().map(Vec::len).max().unwrap() as u32;
+    let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
+    place(&mut backend, &fabric, &params, &state);
+    backend.loaded.as_mut().unwrap().deferred_status = true;
+    backend.advance(1).unwrap();
+    assert_eq!(backend.list_slots(), Some(FIRST_SLOTS), "the lists grew without being asked");
+    let raised = pollster::block_on(backend.read_raised().unwrap()).unwrap();
+    assert_eq!(raised, Raised { first: 0, end: 1, crowded: Some(most), ..Raised::default() });
+    let again = pollster::block_on(backend.read_raised().unwrap()).unwrap();
+    assert_eq!(again, Raised { first: 1, end: 1, ..Raised::default() }, "a read did not clear the status");
+
+    let slots = backend.grow_lists(most).unwrap();
+    assert!(slots >= most && backend.list_slots() == Some(slots), "{slots} slots for {most} candidates");
+    let crowded = backend.state().unwrap();
+    let mut serial = Serial::<f32>::new();
+    place(&mut serial, &fabric, &params, &crowded);
+    assert_eq!(backend.forces().unwrap(), serial.forces().unwrap());
+    backend.advance(20).unwrap();
+    serial.advance(20).unwrap();
+    assert_eq!(backend.state().unwrap(), serial.state().unwrap());
+    let raised = pollster::block_on(backend.read_raised().unwrap()).unwrap();
+    assert!(raised.is_clear() && (raised.first, raised.end) == (1, 21), "{raised:?}");
 }
 
 /// Run `kernel` (a WGSL entry point `main` over `cases` threads that reads

@@ -6,7 +6,7 @@ use std::future::Future;
 use std::sync::Arc;
 
 use serde::Serialize;
-use yarn_backend_wgpu::{Gpu, Mode, Wgpu, wgpu};
+use yarn_backend_wgpu::{Gpu, Mode, Raised, Wgpu, wgpu};
 use yarn_model::{Backend, BackendError, Collider, Params, Plane, State, V3};
 use yarn_render::{RenderError, Renderer, View, Yarn};
 use yarn_topology::{Fabric, Geometry, Pattern, Pin, Side, StitchKind, TopologyError, Vec3};
@@ -137,6 +137,11 @@ pub struct Status {
     pub laddering: bool,
     /// The patch was dropped on the floor.
     pub floor: bool,
+    /// Slots in each segment's self-contact candidate list.
+    pub slots: u32,
+    /// What the GPU last raised, in words, and what was done about it
+    /// ([`Demo::settle`]).
+    pub raised: Option<String>,
 }
 
 /// A node held by the cursor.
@@ -178,6 +183,8 @@ pub struct Demo {
     pull: f64,
     frames: u64,
     substeps: u64,
+    /// What the GPU last raised ([`Status::raised`]).
+    raised: Option<String>,
 }
 
 impl Demo {
@@ -207,6 +214,7 @@ impl Demo {
             pull: 0.0,
             frames: 0,
             substeps: 0,
+            raised: None,
         })
     }
 
@@ -233,6 +241,7 @@ impl Demo {
         let Loaded { fabric, start, purls, yarn } = loaded;
         (self.settings, self.fabric, self.start, self.purls, self.yarn) = (settings, fabric, start, purls, yarn);
         (self.grab, self.release, self.pull, self.frames, self.substeps) = (None, None, 0.0, 0, 0);
+        self.raised = None;
         self.upload_pins()
     }
 
@@ -491,7 +500,55 @@ impl Demo {
             unravelling: self.release.as_ref().is_some_and(|r| r.unravel),
             laddering: self.release.as_ref().is_some_and(|r| !r.unravel),
             floor: self.settings.floor,
+            slots: self.backend.list_slots().unwrap_or(0),
+            raised: self.raised.clone(),
         }
+    }
+
+    /// What the GPU raised since the last look ([`Raised`]), read without
+    /// blocking, to hand to [`Demo::settle`]: in the browser
+    /// [`Demo::step`] cannot wait for it.
+    ///
+    /// # Errors
+    /// A device failure.
+    pub fn read_raised(&mut self) -> Result<impl Future<Output = Result<Raised, BackendError>> + 'static, DemoError> {
+        Ok(self.backend.read_raised()?)
+    }
+
+    /// Act on what the GPU raised. Lists too short for a crush grow (the
+    /// substeps that found them short ran without the candidates left
+    /// over); an overflow, a divergence or yarn stretched past the search
+    /// starts the patch again, since the state those substeps left cannot
+    /// be trusted. [`Status::raised`] says which.
+    ///
+    /// # Errors
+    /// Lists that long do not fit the device
+    /// ([`BackendError::TooLarge`]), or a device failure.
+    pub fn settle(&mut self, raised: Raised) -> Result<(), DemoError> {
+        let Raised { first, end, .. } = raised;
+        let failed = if raised.diverged {
+            Some("the simulation diverged")
+        } else if raised.overstretched {
+            Some("yarn stretched past what the self-contact search covers")
+        } else if raised.overflowed {
+            Some("a fixed-point force overflowed")
+        } else {
+            None
+        };
+        if let Some(what) = failed {
+            self.reset()?;
+            self.raised = Some(format!(
+                "{what} during substeps {first}..{end}: the patch started again; lower the substep or the stiffnesses"
+            ));
+        } else if let Some(needed) = raised.crowded {
+            let had = self.backend.list_slots().unwrap_or(0);
+            let slots = self.backend.grow_lists(needed)?;
+            self.raised = Some(format!(
+                "{needed} self-contact candidates lay near one segment during substeps {first}..{end}, more than \
+                 its list's {had} slots: the lists grew to {slots}"
+            ));
+        }
+        Ok(())
     }
 
     /// Send the pins of the current actions to the backend: the top row

@@ -189,9 +189,24 @@ impl App {
     }
 
     /// The status as JSON: adapter, pattern, purls, nodes, contacts,
-    /// alive, substeps, frames, grabbed, unravelling, laddering.
+    /// alive, substeps, frames, grabbed, unravelling, laddering, floor,
+    /// slots, raised ([`crate::Status`]).
     pub fn status(&self) -> String {
         serde_json::to_string(&self.demo.borrow().status()).unwrap_or_default()
+    }
+
+    /// Read what the GPU raised since the last look, without blocking, and
+    /// act on it ([`Demo::settle`]): grow crowded self-contact lists, or
+    /// start again after a divergence. The page calls it twice a second;
+    /// the status says what it did.
+    pub fn check(&self) -> js_sys::Promise {
+        let read = self.demo.borrow_mut().read_raised();
+        let demo = Rc::clone(&self.demo);
+        wasm_bindgen_futures::future_to_promise(async move {
+            let raised = read.map_err(error)?.await.map_err(error)?;
+            demo.borrow_mut().settle(raised).map_err(error)?;
+            Ok(JsValue::UNDEFINED)
+        })
     }
 
     /// The current positions as a flat `Float32Array` (x, y, z per node),

@@ -337,6 +337,12 @@ test('the floor checkbox drops the patch onto a floor, which it lands on and doe
     console.log(`the lowest node fell from ${lowest(start).toFixed(3)} to ${lowest(later).toFixed(3)}`);
     assert.ok(lowest(start) > 2, `the patch started ${lowest(start)} above the floor`);
     assert.ok(lowest(later) > 0.4 && lowest(later) < 1.5, `the lowest node ended ${lowest(later)} above the floor`);
+    // What the GPU raised, read back without waiting as the page does
+    // twice a second: nothing, with the lists as loaded.
+    await opened.evaluate(() => window.yarnify.app.check());
+    const checked = await opened.evaluate(() => window.yarnify.status());
+    assert.equal(checked.raised, null);
+    assert.equal(checked.slots, 16);
     // Unchecked, the patch stands as knitted again, off the floor.
     await opened.click('#floor');
     assert.equal((await opened.evaluate(() => window.yarnify.status())).floor, false);

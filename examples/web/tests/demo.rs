@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use yarn_backend_wgpu::{Gpu, testing, wgpu};
+use yarn_backend_wgpu::{Gpu, Raised, testing, wgpu};
 use yarn_topology::{Fabric, Front, Pattern};
 use yarnify_web::{Demo, DemoError, OFFSCREEN_FORMAT, SETTINGS, Settings};
 
@@ -377,4 +377,36 @@ fn a_patch_dropped_on_the_floor_lands_on_it_and_never_passes_it() {
 fn start_of(demo: &Demo) -> [f32; 3] {
     let p = demo.fabric().positions()[0];
     [p.x as f32, p.y as f32, p.z as f32]
+}
+
+/// What the GPU raised, acted on as the browser does twice a second: a
+/// crowded list grows and the status says so; a divergence starts the
+/// patch again and says so. Natively the advance itself waits for the
+/// status, so the read finds nothing and changes nothing.
+#[test]
+fn what_the_gpu_raised_grows_the_lists_or_starts_again() {
+    let Some((_, mut demo)) = demo() else { return };
+    demo.set("self-contact", 1600.0).expect("self-contact on");
+    steps(&mut demo, 3);
+    let raised = pollster::block_on(demo.read_raised().expect("read")).expect("raised");
+    assert!(raised.is_clear(), "{raised:?}");
+    let before = demo.status();
+    demo.settle(raised).expect("settle");
+    assert_eq!(demo.status(), before, "settling nothing changed the demo");
+
+    let slots = before.slots;
+    let crowd = Raised { first: 30, end: 60, crowded: Some(slots + 1), ..Raised::default() };
+    demo.settle(crowd).expect("grow");
+    let status = demo.status();
+    assert_eq!(status.slots, 2 * slots);
+    let said = status.raised.expect("the growth is reported");
+    assert!(said.contains(&format!("{}", slots + 1)) && said.contains(&format!("grew to {}", 2 * slots)), "{said}");
+    assert_eq!(status.substeps, before.substeps, "growing the lists started the patch again");
+
+    demo.settle(Raised { first: 60, end: 90, diverged: true, ..Raised::default() }).expect("start again");
+    let status = demo.status();
+    assert_eq!((status.substeps, status.frames), (0, 0), "the diverged patch was kept");
+    let said = status.raised.expect("the divergence is reported");
+    assert!(said.contains("diverged during substeps 60..90"), "{said}");
+    assert_eq!(positions(&demo)[0], start_of(&demo));
 }

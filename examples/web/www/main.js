@@ -206,8 +206,10 @@ async function run() {
     positions: async () => Array.from(await app.positions()),
   });
 
-  // The frame loop: several substeps a frame, nothing read back.
+  // The frame loop: several substeps a frame, nothing read back but what
+  // the GPU raised, twice a second (app.check), which never waits.
   let window0 = { time: performance.now(), substeps: 0 };
+  let checking = false;
   let status = JSON.parse(app.status());
   let previous = performance.now();
   function frame() {
@@ -224,6 +226,10 @@ async function run() {
     yarnify.frameMs = yarnify.frameMs === 0 ? now - previous : 0.9 * yarnify.frameMs + 0.1 * (now - previous);
     previous = now;
     if (now - window0.time > 500) {
+      if (!checking) {
+        checking = true;
+        app.check().catch((e) => showError(String(e.message ?? e))).finally(() => { checking = false; });
+      }
       status = JSON.parse(app.status());
       yarnify.substepsPerSecond = (status.substeps - window0.substeps) / ((now - window0.time) / 1000);
       if (yarnify.substepsPerSecond < 0) yarnify.substepsPerSecond = 0;
@@ -232,6 +238,7 @@ async function run() {
       statusLine.innerHTML = `${adapterName || status.adapter} · ${status.pattern} · ${status.nodes} nodes · ` +
         `${status.alive}/${status.contacts} contacts · ` +
         `${Math.round(yarnify.substepsPerSecond)} substeps/s · frame ${yarnify.frameMs.toFixed(1)} ms` +
+        (status.raised ? ` · ${status.raised}` : '') +
         `<span id="error">${error}</span>`;
     }
     requestAnimationFrame(frame);
