@@ -442,12 +442,16 @@ impl GpuFabric {
     }
 
     /// Make the candidate lists hold at least `needed` candidates a
-    /// segment: double the slots, or more, and remake the lists stale.
+    /// segment: double the slots, or more, and remake the lists stale;
+    /// nothing when they already hold that many.
     ///
     /// # Errors
     /// [`BackendError::TooLarge`] naming the binding limit when lists that
     /// large do not fit the device; the lists are then kept.
     pub(crate) fn grow_lists(&mut self, needed: u32) -> Result<(), BackendError> {
+        if needed <= self.slots {
+            return Ok(());
+        }
         let slots = needed.next_power_of_two().max(2 * self.slots);
         fits_binding(
             &self.gpu,

@@ -266,7 +266,8 @@ impl Wgpu {
     }
 
     /// Make the self-contact candidate lists hold at least `needed`
-    /// candidates a segment, as [`Backend::advance`] does on its own
+    /// candidates a segment (nothing when they already do), as
+    /// [`Backend::advance`] does on its own
     /// natively when a batch finds them crowded; for the browser, after
     /// [`Raised::crowded`]. Returns the slots each list now has.
     ///

@@ -402,6 +402,8 @@ fn what_the_gpu_raised_grows_the_lists_or_starts_again() {
     let said = status.raised.expect("the growth is reported");
     assert!(said.contains(&format!("{}", slots + 1)) && said.contains(&format!("grew to {}", 2 * slots)), "{said}");
     assert_eq!(status.substeps, before.substeps, "growing the lists started the patch again");
+    demo.settle(crowd).expect("the same crowd again");
+    assert_eq!(demo.status().slots, 2 * slots, "lists that hold the crowd grew again");
 
     demo.settle(Raised { first: 60, end: 90, diverged: true, ..Raised::default() }).expect("start again");
     let status = demo.status();
