@@ -522,17 +522,7 @@ impl GpuFabric {
         self.raised_since = end;
         let status = &self.buffers.status;
         let bytes = self.read_async_then(status, 16, |encoder| encoder.clear_buffer(status, 0, None));
-        async move {
-            let [bits, crowd]: [u32; 2] = bytemuck::pod_read_unaligned(&bytes.await?[..8]);
-            Ok(Raised {
-                first,
-                end,
-                overflowed: bits & OVERFLOWED != 0,
-                diverged: bits & DIVERGED != 0,
-                overstretched: bits & STRETCHED != 0,
-                crowded: (bits & CROWDED != 0).then_some(crowd),
-            })
-        }
+        async move { Ok(Raised::from_status(&bytes.await?, first, end)) }
     }
 
     /// Read a node buffer of `vec4<f32>` as vectors.
@@ -565,17 +555,17 @@ impl GpuFabric {
         let status = pollster::block_on(read_mapped(&self.gpu.device, &self.buffers.status_readback))
             .map_err(BackendError::Device)?;
         self.gpu.take_error().map_err(BackendError::Device)?;
-        let [bits, crowd]: [u32; 2] = bytemuck::pod_read_unaligned(&status[..8]);
-        if bits & (OVERFLOWED | DIVERGED | CROWDED | STRETCHED) == 0 {
+        let raised = Raised::from_status(&status, first, end);
+        if raised.is_clear() {
             return Ok(());
         }
-        if bits & OVERFLOWED != 0 {
+        if raised.overflowed {
             return Err(BackendError::Overflow { first, end, max_force: max_force() });
         }
-        if bits & STRETCHED != 0 {
+        if raised.overstretched {
             return Err(BackendError::Overstretched { first, end });
         }
-        if bits & CROWDED != 0 {
+        if let Some(crowd) = raised.crowded {
             self.crowded = Some(crowd);
             return Err(BackendError::TooLarge {
                 what: "self-contact candidates near one segment",
@@ -591,6 +581,22 @@ impl GpuFabric {
         self.read_vectors(&self.buffers.v[self.parity.v], n, &mut state.velocities)?;
         let (node, speed) = state.first_diverged(f64::from(limit as f32)).unwrap_or((0, f64::NAN));
         Err(BackendError::Diverged { substep: end, node, speed, limit })
+    }
+}
+
+impl Raised {
+    /// The status words the batches of substeps `first..end` left
+    /// (`status[0]`'s bits, `status[1]` the crowd), as flags.
+    fn from_status(status: &[u8], first: u64, end: u64) -> Self {
+        let [bits, crowd]: [u32; 2] = bytemuck::pod_read_unaligned(&status[..8]);
+        Self {
+            first,
+            end,
+            overflowed: bits & OVERFLOWED != 0,
+            diverged: bits & DIVERGED != 0,
+            overstretched: bits & STRETCHED != 0,
+            crowded: (bits & CROWDED != 0).then_some(crowd),
+        }
     }
 }
 

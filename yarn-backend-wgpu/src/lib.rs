@@ -267,9 +267,9 @@ impl Wgpu {
 
     /// Make the self-contact candidate lists hold at least `needed`
     /// candidates a segment (nothing when they already do), as
-    /// [`Backend::advance`] does on its own
-    /// natively when a batch finds them crowded; for the browser, after
-    /// [`Raised::crowded`]. Returns the slots each list now has.
+    /// [`Backend::advance`] does on its own natively when a batch finds
+    /// them crowded; for the browser, after [`Raised::crowded`]. Returns
+    /// the slots each list now has.
     ///
     /// # Errors
     /// [`BackendError::NotLoaded`] before load; [`BackendError::TooLarge`]
