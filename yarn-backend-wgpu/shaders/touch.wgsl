@@ -247,17 +247,3 @@ fn watch_speed(velocity: vec3<f32>) {
         lists[SPEEDING] = 1u;
     }
 }
-
-// After a node moves to `at`: flag a rebuild when it has moved more than
-// half the skin from its anchor.
-fn watch_move(i: u32, at: vec3<f32>) {
-    if (p.flags & SELF_CONTACT) == 0u {
-        return;
-    }
-    let d = at - vec3<f32>(bitcast<f32>(lists[anchor_at(i, 0u)]), bitcast<f32>(lists[anchor_at(i, 1u)]),
-                           bitcast<f32>(lists[anchor_at(i, 2u)]));
-    // A NaN fails the comparison, so it rebuilds too.
-    if !(dot3(d, d) <= mul(p.half_skin, p.half_skin)) {
-        lists[STALE] = 1u;
-    }
-}

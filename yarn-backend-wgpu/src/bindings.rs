@@ -254,7 +254,8 @@ impl Groups {
                 bind(gpu, &pipelines.friction.layout, "friction", &bound)
             }),
             pins: ByParity::new(|at| {
-                bind(gpu, &pipelines.pins.layout, "pins", &[&buffers.params, &x[at.x], &v[at.v], &buffers.pins])
+                let bound = [&buffers.params, &x[at.x], &v[at.v], &buffers.pins, &buffers.lists];
+                bind(gpu, &pipelines.pins.layout, "pins", &bound)
             }),
             check: ByParity::new(|at| {
                 let bound = [&buffers.params, &x[at.x], &v[at.v], &buffers.status, &buffers.lists];

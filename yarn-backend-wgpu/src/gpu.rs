@@ -187,7 +187,7 @@ impl Gpu {
                 &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, ReadWrite],
                 ["main"],
             ),
-            pins: build(&device, &shaders::PINS, &[Uniform, ReadWrite, ReadWrite, Read], ["main"]),
+            pins: build(&device, &shaders::PINS, &[Uniform, ReadWrite, ReadWrite, Read, ReadWrite], ["main"]),
             fused: build(
                 &device,
                 &shaders::FUSED,

@@ -18,6 +18,8 @@ pub const NODE_FRICTION: &str = include_str!("../shaders/node_friction.wgsl");
 pub const LISTS: &str = include_str!("../shaders/lists.wgsl");
 /// Self-contact: the pair forces and friction, summed over the lists.
 pub const TOUCH: &str = include_str!("../shaders/touch.wgsl");
+/// Self-contact: each moved node's watch on its anchor.
+pub const WATCH: &str = include_str!("../shaders/watch.wgsl");
 /// The candidate grid's layout and hashing.
 pub const GRID: &str = include_str!("../shaders/grid.wgsl");
 
@@ -48,7 +50,7 @@ impl Pass {
 /// and `forces`).
 pub const GATHER: Pass = Pass {
     name: "gather.wgsl",
-    uses: &[NODE_FORCE, LISTS, TOUCH, UPDATE],
+    uses: &[NODE_FORCE, LISTS, TOUCH, WATCH, UPDATE],
     body: include_str!("../shaders/gather.wgsl"),
 };
 /// Fixed-point mode's scatter, then its velocity update (entry points
@@ -57,11 +59,11 @@ pub const FIXED: Pass = Pass { name: "fixed.wgsl", uses: &[UPDATE], body: includ
 /// Friction and the move, both modes (entry point `main`).
 pub const FRICTION: Pass = Pass {
     name: "friction.wgsl",
-    uses: &[NODE_FRICTION, LISTS, TOUCH],
+    uses: &[NODE_FRICTION, LISTS, TOUCH, WATCH],
     body: include_str!("../shaders/friction.wgsl"),
 };
 /// Pins (entry point `main`).
-pub const PINS: Pass = Pass { name: "pins.wgsl", uses: &[], body: include_str!("../shaders/pins.wgsl") };
+pub const PINS: Pass = Pass { name: "pins.wgsl", uses: &[LISTS, WATCH], body: include_str!("../shaders/pins.wgsl") };
 
 /// Gather mode's whole substep with friction, in one dispatch (entry
 /// point `main`).

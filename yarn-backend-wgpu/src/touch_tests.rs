@@ -84,6 +84,52 @@ fn the_gpu_lists_are_the_twins() {
     }
 }
 
+/// A pin whose target lies far from where its node was is watched where
+/// the pin puts the node, not only where the move took it, so the GPU's
+/// lists see the pairs the pin brought into reach, as `Serial<f32>`'s do.
+/// Regression: `pins.wgsl` did not watch its nodes, so the substep after a
+/// target was set ran on lists built before the pin moved its node, and a
+/// pair that pushed on the CPU added nothing here.
+#[test]
+fn a_node_pinned_far_away_is_watched_where_the_pin_puts_it() {
+    let Some(gpu) = gpu() else { return };
+    let params = Params { self_contact_stiffness: 800.0, sleep_speed: 0.0, substep: 1.0 / 6000.0, ..Params::default() };
+    let (fabric, state) = crumpled(0.0, 1.0);
+    let model = yarn_model::Model::<f32>::new(&fabric, &params).unwrap();
+    let r = model.contact_rule().radius();
+    let pairs_at = |x: &[V3<f32>], skin: f64| {
+        let mut pairs = Vec::new();
+        yarn_model::self_contact::find_pairs(&model, x, skin, &mut pairs);
+        pairs
+    };
+    let candidates = pairs_at(&state.positions, params.self_contact_skin * r);
+    // The first node and axis whose move by 0.8 r brings into touch a pair
+    // that was beyond the lists' reach, without yarn through yarn.
+    let axes = [V3::x(), -V3::x(), V3::y(), -V3::y(), V3::z(), -V3::z()];
+    let (node, target) = (0..fabric.node_count())
+        .flat_map(|n| axes.iter().map(move |&axis| (n, axis)))
+        .find_map(|(n, axis)| {
+            let mut x = state.positions.clone();
+            x[n] += axis * (0.8 * r) as f32;
+            let reached = pairs_at(&x, 0.0).iter().any(|pair| !candidates.contains(pair));
+            (reached && model.check_apart(&x).is_ok()).then_some((n, x[n]))
+        })
+        .expect("some node's move brings a far pair into touch");
+    let pin = yarn_topology::Pin {
+        node: node as u32,
+        target: yarn_topology::Vec3::new(target.x.into(), target.y.into(), target.z.into()),
+    };
+    let mut backend = Wgpu::with_gpu(gpu, Mode::Gather);
+    let mut serial = Serial::<f32>::new();
+    for b in [&mut backend as &mut dyn Backend<Real = f32>, &mut serial] {
+        place(b, &fabric, &params, &state);
+        b.advance(2).unwrap();
+        b.set_pins(&[pin]).unwrap();
+        b.advance(30).unwrap();
+    }
+    assert_eq!(backend.state().unwrap(), serial.state().unwrap());
+}
+
 /// A crush that puts more candidates near a segment than the lists hold
 /// grows them and runs the batch again, to `Serial<f32>`'s forces and
 /// trajectory bit for bit; on a device whose bindings cannot hold lists
