@@ -11,6 +11,9 @@
 //! points stay inside both and they stay far from parallel. Without
 //! self-contact the same soak passes yarn through yarn, and the
 //! certificate sees it.
+//!
+//! Beside it, ignored, a measurement of which pairs the self-contact lists
+//! hold once a patch has settled.
 
 use yarn_backend_cpu::Rayon;
 use yarn_model::self_contact::pairs_within;
@@ -119,4 +122,66 @@ fn a_soak_of_random_grabs_keeps_every_crossing_and_without_self_contact_does_not
     // far from letting yarn through.
     assert!(with.closest > 1.5, "two segments came {} r apart", with.closest);
     assert!(without.flips > 0 && without.closest < 1.0, "the soak never pressed yarn through yarn");
+}
+
+/// Who the self-contact lists hold once a patch has settled, and what that
+/// costs the GPU's per-segment pair loops: for each side, after 3,000
+/// substeps with self-contact at 1,600 (as `yarn-gate bench --settle 3000
+/// --self-contact 1600` runs it), the candidate pairs per node, the share
+/// of them within 2r (those push) and how the rest spread to 2r + the skin,
+/// and per 32-segment warp how busy its lanes are: a warp's loop runs as
+/// many times as its fullest segment's (`touch.wgsl`'s `segment_sums`),
+/// over every candidate for the pushes and over the pushing ones for
+/// friction. About half a minute:
+/// `cargo test --release -p yarn-gate --test crossings -- --ignored --nocapture measure_the_candidates`.
+#[test]
+#[ignore = "a measurement, printed"]
+fn measure_the_candidates() {
+    for side in [16, 48] {
+        let fabric = Fabric::from_chart(&Chart::stockinette(side, side).unwrap(), &Geometry::default()).unwrap();
+        let params = Params { self_contact_stiffness: 1600.0, ..Params::default() };
+        let mut backend = Rayon::new();
+        backend.load(&fabric, &params).unwrap();
+        backend.advance(3000).unwrap();
+        let x = backend.state().unwrap().positions;
+        let model = Model::<f32>::new(&fabric, &params).unwrap();
+        let r = model.contact_rule().radius();
+        let lists = yarn_model::self_contact::grid::lists(&model, &x).unwrap();
+        let gap = |a: usize, b: usize| {
+            let (p0, p1, q0, q1) = (x[a], x[segment_end(&model, a)], x[b], x[segment_end(&model, b)]);
+            f64::from(closest_gap(&p0, &p1, &q0, &q1).0.norm()) / r
+        };
+        let pushing: Vec<usize> = lists
+            .iter()
+            .enumerate()
+            .map(|(a, list)| list.iter().filter(|&&b| gap(a, b as usize) < 2.0).count())
+            .collect();
+        let entries: usize = lists.iter().map(Vec::len).sum();
+        let bins = [2.0, 2.1, 2.25, 2.5 + 1e-9];
+        let within: Vec<String> = bins
+            .iter()
+            .map(|&edge| {
+                let n: usize = lists
+                    .iter()
+                    .enumerate()
+                    .map(|(a, list)| list.iter().filter(|&&b| gap(a, b as usize) < edge).count())
+                    .sum();
+                format!("{:.0} % within {edge:.2} r", 100.0 * n as f64 / entries as f64)
+            })
+            .collect();
+        let busy = |per_segment: &[usize]| {
+            let runs: usize = per_segment.chunks(32).map(|warp| warp.iter().max().copied().unwrap_or(0) * 32).sum();
+            per_segment.iter().sum::<usize>() as f64 / runs as f64
+        };
+        let counts: Vec<usize> = lists.iter().map(Vec::len).collect();
+        println!(
+            "{side}x{side} ({} nodes): {:.2} candidate pairs a node, {}; lanes busy in a warp's loop: \
+             pushes {:.0} %, friction {:.0} %",
+            x.len(),
+            entries as f64 / 2.0 / x.len() as f64,
+            within.join(", "),
+            100.0 * busy(&counts),
+            100.0 * busy(&pushing)
+        );
+    }
 }
