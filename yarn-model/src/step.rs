@@ -162,6 +162,18 @@ pub fn potential<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Energy {
             .zip(model.alive())
             .filter(|(_, alive)| **alive)
             .map(|(k, _)| spring_energy(&x[k.a as usize], &x[k.b as usize], k.rest, c.contact))),
+        gravity: sum(&mut x.iter().map(|p| gravity_energy(p, c.mass, c.gravity))),
+        ..touch_potential(model, x)
+    }
+}
+
+/// The potential of what touches the yarn besides its own chain and
+/// contacts at positions `x`: [`potential`]'s `self_contact` and
+/// `collider`, every other term zero.
+pub fn touch_potential<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Energy {
+    let c = model.coeffs();
+    let sum = |values: &mut dyn Iterator<Item = T>| values.map(Real::to_f64).sum::<f64>();
+    Energy {
         self_contact: {
             let reach = T::of(2.0 * model.contact_rule().radius());
             sum(&mut touching(model, x).into_iter().map(|[a, b]| {
@@ -180,8 +192,7 @@ pub fn potential<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Energy {
             let radius = T::of(model.contact_rule().radius());
             sum(&mut model.surfaces().iter().flat_map(|s| x.iter().map(move |p| s.energy(p, radius, c.collider))))
         },
-        gravity: sum(&mut x.iter().map(|p| gravity_energy(p, c.mass, c.gravity))),
-        kinetic: 0.0,
+        ..Energy::default()
     }
 }
 

@@ -58,6 +58,11 @@ pub struct CheckArgs {
     /// Rest-curl fraction κ; 1 gives a patch that should read flat.
     #[arg(long)]
     rest_curl: Option<f64>,
+    /// Self-contact stiffness k_sc: yarn kept one diameter from yarn
+    /// (docs/self-contact.md); 0 turns it off [default: the preset's, off
+    /// in both]. 1,600 is the drape's.
+    #[arg(long)]
+    self_contact: Option<f64>,
     /// Nodes a loop of the default preset's interlooped geometry: even, at
     /// least 10 (default 24, `Geometry::nodes_per_loop`).
     #[arg(long)]
@@ -90,6 +95,7 @@ impl CheckArgs {
     pub fn run(&self) -> Result<Outcome, GateError> {
         let mut params = self.preset.params();
         params.rest_curl = self.rest_curl.unwrap_or(params.rest_curl);
+        params.self_contact_stiffness = self.self_contact.unwrap_or(params.self_contact_stiffness);
         let chart = self.pattern.chart(self.size)?;
         let solver = self.solver.as_deref();
         let backend = self.backend.as_deref().unwrap_or("serial");

@@ -161,6 +161,8 @@ pub struct RestReport {
     pub nodes: usize,
     /// Contact count.
     pub contacts: usize,
+    /// Self-contact's stiffness k_sc (0: off).
+    pub self_contact: f64,
     /// Whether the relaxation's rest was certified.
     pub certified: bool,
     /// The relaxation: its certificate, work and wall time.
@@ -382,6 +384,7 @@ fn run<S: Settle>(
         size: format!("{}x{}", config.chart.width(), config.chart.height()),
         nodes: fabric.node_count(),
         contacts: fabric.contacts().len(),
+        self_contact: config.params.self_contact_stiffness,
         certified: relaxed.certificate.certified,
         rest: relaxed.settled(),
         energy_initial: step::energy(&ruler, &start).total(),
@@ -479,8 +482,10 @@ impl RestReport {
             Path::Dynamic => format!("dynamics with friction on {}", self.backend),
         };
         let f = &self.figures;
+        let touching =
+            if self.self_contact > 0.0 { format!(", self-contact at {}", self.self_contact) } else { String::new() };
         let mut out = format!(
-            "yarn-gate check: {} patch, {} nodes, {} contacts, at certified rest by {path}\n\n",
+            "yarn-gate check: {} patch, {} nodes, {} contacts{touching}, at certified rest by {path}\n\n",
             self.size, self.nodes, self.contacts
         );
         out += &criteria_table(&self.criteria, self.pass);
