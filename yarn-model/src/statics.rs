@@ -411,8 +411,9 @@ fn floor(model: &Model<f64>) -> f64 {
 /// coordinates (row 3k + c for the k-th free node's coordinate c), pinned
 /// nodes as in [`per_coordinate_entries`]: springs and tethers
 /// k n nᵀ + k (1 − ℓ₀/ℓ)⁺ (I − n nᵀ), joints [`bend_hessian`] plus
-/// [`ISOTROPIC_BEND`] of [`second_difference`] in each coordinate, and the
-/// floor. Its pattern depends on the model and pins only, not on `x`.
+/// [`ISOTROPIC_BEND`] of [`second_difference`] in each coordinate, the
+/// self-contact `pairs`' pushes, and the floor. Its pattern depends on the
+/// model, the pins and `pairs` only, not on `x`.
 fn coupled_entries(
     model: &Model<f64>,
     slot: &[Option<usize>],
