@@ -788,22 +788,23 @@ fn energy_change(model: &Model<f64>, base: &[V3<f64>], x: &[V3<f64>]) -> f64 {
     stretch + bend + contact + c.mass * c.gravity * rise
 }
 
-/// The energy of self-contact and the colliders at `x`, whose change the
-/// solve's potential takes as a plain difference ([`potential_change`]):
-/// their terms vanish a little way apart, so near a rest they are few and
-/// small, and the difference loses little to rounding.
-fn touch_energy(model: &Model<f64>, x: &[V3<f64>]) -> f64 {
-    let touch = step::touch_potential(model, x);
+/// The force at `x` into `forces` ([`step::accumulate_forces`]) and the
+/// energy of self-contact and the colliders there, from one search for
+/// the pairs within reach. The solve's potential takes that energy's
+/// change as a plain difference ([`potential_change`]): its terms vanish a
+/// little way apart, so near a rest they are few and small, and the
+/// difference loses little to rounding.
+fn forces_and_touch(model: &Model<f64>, x: &[V3<f64>], forces: &mut Vec<V3<f64>>) -> f64 {
+    let touch = step::forces_and_touch_potential(model, x, forces);
     touch.self_contact + touch.collider
 }
 
-/// The change of the solve's potential from `base`, where self-contact and
-/// the colliders hold `base_touch` ([`touch_energy`]), to `x`: the change
-/// of its chain and contacts ([`energy_change`]) and of those; and
-/// `touch_energy` at `x`.
-fn potential_change(model: &Model<f64>, base: &[V3<f64>], base_touch: f64, x: &[V3<f64>]) -> (f64, f64) {
-    let touch = touch_energy(model, x);
-    (energy_change(model, base, x) + (touch - base_touch), touch)
+/// The change of the solve's potential from `base` to `x`, where
+/// self-contact and the colliders hold `base_touch` and `touch`
+/// ([`forces_and_touch`]): the change of its chain and contacts
+/// ([`energy_change`]) and of those.
+fn potential_change(model: &Model<f64>, base: &[V3<f64>], base_touch: f64, x: &[V3<f64>], touch: f64) -> f64 {
+    energy_change(model, base, x) + (touch - base_touch)
 }
 
 /// U, F and the cost and gradient in z at one point.
@@ -818,7 +819,8 @@ struct Evaluation {
     pull: Vec<V3<f64>>,
     /// The cost: the solve's potential's change from the base.
     change: f64,
-    /// [`touch_energy`] here, which the next base's change counts from.
+    /// [`forces_and_touch`]'s energy here, which the next base's change
+    /// counts from.
     touch: f64,
     /// Its gradient in z, L⁻¹ P (−`pull`) over the free nodes.
     gradient: Vec<f64>,
@@ -828,7 +830,7 @@ struct Evaluation {
 /// L-BFGS drops its problem when a line search fails.
 #[derive(Debug)]
 struct Tally {
-    /// Positions at z = 0, and [`touch_energy`] there.
+    /// Positions at z = 0, and [`forces_and_touch`]'s energy there.
     base: Vec<V3<f64>>,
     base_touch: f64,
     evaluations: usize,
@@ -870,8 +872,8 @@ impl Objective<'_> {
             tally.largest_step = tally.largest_step.max(u.norm());
         }
         let mut forces = Vec::new();
-        step::accumulate_forces(self.model, &positions, &mut forces);
-        let (change, touch) = potential_change(self.model, &tally.base, tally.base_touch, &positions);
+        let touch = forces_and_touch(self.model, &positions, &mut forces);
+        let change = potential_change(self.model, &tally.base, tally.base_touch, &positions, touch);
         if !change.is_finite() {
             return Err(Error::msg("U is not finite at this trial"));
         }
@@ -978,7 +980,7 @@ pub fn solve(model: &Model<f64>, state: &mut State<f64>, options: &StaticOptions
     state.velocities.iter_mut().for_each(|v| *v = V3::zeros());
     let pinned = pinned(model);
     let mut forces = Vec::new();
-    step::accumulate_forces(model, &state.positions, &mut forces);
+    let touch = forces_and_touch(model, &state.positions, &mut forces);
     let mut pull = forces.clone();
     add_ramps(model, &state.positions, &mut pull);
     // The last accepted point, where z = 0.
@@ -988,7 +990,7 @@ pub fn solve(model: &Model<f64>, state: &mut State<f64>, options: &StaticOptions
         forces,
         pull,
         change: 0.0,
-        touch: touch_energy(model, &state.positions),
+        touch,
         gradient: Vec::new(),
     };
     let tally = RefCell::new(Tally {
@@ -1643,6 +1645,21 @@ mod tests {
         }
     }
 
+    /// A move of every node from `base` by about `size`, and its work
+    /// −F·u with the solve's force at the midpoint (the move as it landed,
+    /// positions rounded).
+    fn small_move(model: &Model<f64>, base: &[V3<f64>], size: f64) -> (Vec<V3<f64>>, f64) {
+        let x: Vec<V3<f64>> =
+            (0..base.len()).map(|i| base[i] + V3::new((2.0 * i as f64).cos(), (i as f64).sin(), 0.7) * size).collect();
+        let u: Vec<V3<f64>> = x.iter().zip(base).map(|(x, b)| x - b).collect();
+        let mid: Vec<V3<f64>> = base.iter().zip(&u).map(|(b, u)| b + u * 0.5).collect();
+        let mut forces = Vec::new();
+        step::accumulate_forces(model, &mid, &mut forces);
+        add_ramps(model, &mid, &mut forces);
+        let work = -forces.iter().zip(&u).map(|(f, u)| f.dot(u)).sum::<f64>();
+        (x, work)
+    }
+
     /// For a tiny move u the change is −F·u at the midpoint (exact to third
     /// order), to a part in 10⁶ of it, on a whole patch: the cost the line
     /// search sees resolves steps whose effect a difference of two U's,
@@ -1655,15 +1672,7 @@ mod tests {
         base.iter_mut()
             .enumerate()
             .for_each(|(i, p)| *p += V3::new(0.1 * (i as f64).sin(), 0.05 * (i as f64).cos(), 0.0));
-        let x: Vec<V3<f64>> =
-            (0..base.len()).map(|i| base[i] + V3::new((2.0 * i as f64).cos(), (i as f64).sin(), 0.7) * 1e-9).collect();
-        // The move as it landed, positions rounded.
-        let u: Vec<V3<f64>> = x.iter().zip(&base).map(|(x, b)| x - b).collect();
-        let mid: Vec<V3<f64>> = base.iter().zip(&u).map(|(b, u)| b + u * 0.5).collect();
-        let mut forces = Vec::new();
-        step::accumulate_forces(&model, &mid, &mut forces);
-        add_ramps(&model, &mid, &mut forces);
-        let work: f64 = -forces.iter().zip(&u).map(|(f, u)| f.dot(u)).sum::<f64>();
+        let (x, work) = small_move(&model, &base, 1e-9);
         let change = energy_change(&model, &base, &x);
         assert!((change - work).abs() <= 1e-6 * work.abs(), "{change:e} vs {work:e}");
         let naive = step::potential(&model, &x).potential() - step::potential(&model, &base).potential();
@@ -1686,15 +1695,11 @@ mod tests {
         model.set_colliders(&[crate::Collider::Plane(crate::Plane::floor(lowest + 0.5))]).unwrap();
         let touch = step::touch_potential(&model, &base);
         assert!(touch.self_contact > 1.0 && touch.collider > 0.0, "{touch:?}");
-        let x: Vec<V3<f64>> =
-            (0..base.len()).map(|i| base[i] + V3::new((2.0 * i as f64).cos(), (i as f64).sin(), 0.7) * 1e-6).collect();
-        let u: Vec<V3<f64>> = x.iter().zip(&base).map(|(x, b)| x - b).collect();
-        let mid: Vec<V3<f64>> = base.iter().zip(&u).map(|(b, u)| b + u * 0.5).collect();
+        let (x, work) = small_move(&model, &base, 1e-6);
         let mut forces = Vec::new();
-        step::accumulate_forces(&model, &mid, &mut forces);
-        add_ramps(&model, &mid, &mut forces);
-        let work: f64 = -forces.iter().zip(&u).map(|(f, u)| f.dot(u)).sum::<f64>();
-        let (change, _) = potential_change(&model, &base, touch_energy(&model, &base), &x);
+        let (base_touch, touch) =
+            (forces_and_touch(&model, &base, &mut forces), forces_and_touch(&model, &x, &mut forces));
+        let change = potential_change(&model, &base, base_touch, &x, touch);
         println!("change {change:e}, −F·u {work:e}");
         assert!((change - work).abs() <= 1e-4 * work.abs(), "{change:e} vs {work:e}");
     }

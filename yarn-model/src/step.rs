@@ -171,12 +171,26 @@ pub fn potential<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Energy {
 /// contacts at positions `x`: [`potential`]'s `self_contact` and
 /// `collider`, every other term zero.
 pub fn touch_potential<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Energy {
+    touch_potential_over(model, x, &touching(model, x))
+}
+
+/// [`accumulate_forces`] into `forces` and [`touch_potential`] at `x`,
+/// from one search for the pairs within reach.
+pub fn forces_and_touch_potential<T: Real>(model: &Model<T>, x: &[V3<T>], forces: &mut Vec<V3<T>>) -> Energy {
+    let pairs = touching(model, x);
+    accumulate_forces_over(model, x, &pairs, forces);
+    touch_potential_over(model, x, &pairs)
+}
+
+/// [`touch_potential`] with the self-contact candidate pairs given: a list
+/// that holds every pair within reach (more add nothing).
+fn touch_potential_over<T: Real>(model: &Model<T>, x: &[V3<T>], pairs: &[[u32; 2]]) -> Energy {
     let c = model.coeffs();
     let sum = |values: &mut dyn Iterator<Item = T>| values.map(Real::to_f64).sum::<f64>();
     Energy {
         self_contact: {
             let reach = T::of(2.0 * model.contact_rule().radius());
-            sum(&mut touching(model, x).into_iter().map(|[a, b]| {
+            sum(&mut pairs.iter().map(|&[a, b]| {
                 let (a, b) = (a as usize, b as usize);
                 self_contact_energy(
                     &x[a],
