@@ -63,6 +63,18 @@ impl<T: Real> Field<T> {
         [&self.x[range.clone()], &self.y[range.clone()], &self.z[range]]
     }
 
+    /// The three components of the first `n` entries.
+    #[inline]
+    pub(crate) fn prefix(&self, n: usize) -> [&[T]; 3] {
+        [&self.x[..n], &self.y[..n], &self.z[..n]]
+    }
+
+    /// The three components of the first `n` entries, writable.
+    #[inline]
+    pub(crate) fn prefix_mut(&mut self, n: usize) -> [&mut [T]; 3] {
+        [&mut self.x[..n], &mut self.y[..n], &mut self.z[..n]]
+    }
+
     pub(crate) fn blocks_mut(&mut self) -> impl Iterator<Item = BlockMut<'_, T>> {
         let Self { x, y, z } = self;
         x.chunks_mut(BLOCK).zip(y.chunks_mut(BLOCK)).zip(z.chunks_mut(BLOCK)).map(|((x, y), z)| BlockMut { x, y, z })

@@ -102,6 +102,8 @@ pub(crate) struct Scratch<T> {
     relative: Field<T>,
     /// Per node of a block: the colliders' friction change from v*.
     collider_friction: Field<T>,
+    /// The self-contact pair passes' gathered values.
+    pairs: touching::PairScratch<T>,
 }
 
 impl<T: Real> Scratch<T> {
@@ -116,6 +118,7 @@ impl<T: Real> Scratch<T> {
             gap: Field::zeros(BLOCK),
             relative: Field::zeros(BLOCK),
             collider_friction: Field::zeros(BLOCK),
+            pairs: touching::PairScratch::new(),
         }
     }
 }
@@ -181,7 +184,10 @@ impl<T: Real> CpuFabric<T> {
         let this = &*self;
         type PairsBlock<'a, T> = (BlockMut<'a, T>, (&'a mut [bool], &'a mut [Closest<T>]));
         let body = |(block, (mut out, (active, closest))): (usize, PairsBlock<'_, T>)| {
-            this.touching.forces_block(&this.model, &this.positions, block, (&mut out, active, closest));
+            this.with_scratch(|scratch| {
+                let pairs = (&mut out, active, closest);
+                this.touching.forces_block(&this.model, &this.positions, block, pairs, &mut scratch.pairs);
+            });
         };
         run_pass!(
             self.exec,
@@ -505,7 +511,9 @@ impl<T: Real> CpuFabric<T> {
             let mut friction = std::mem::take(&mut self.touching.friction);
             let this = &*self;
             let body = |(block, mut out): (usize, BlockMut<'_, T>)| {
-                this.touching.friction_block(&this.model, &this.velocities, block, &mut out);
+                this.with_scratch(|scratch| {
+                    this.touching.friction_block(&this.model, &this.velocities, block, &mut out, &mut scratch.pairs);
+                });
             };
             run_pass!(
                 self.exec,

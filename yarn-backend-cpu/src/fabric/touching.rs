@@ -7,7 +7,11 @@
 //! the skin since the last build or the model's revision changed, and as
 //! passes over the pairs: *pair forces* (each pair's force on its four
 //! nodes, into its four slots) and *pair friction* (each pushing pair's
-//! friction change and its nodes' shares, from x and v*). After each, the
+//! friction change and its nodes' shares, from x and v*). Each pass gathers
+//! a block's pairs by component into its thread's [`PairScratch`], finds
+//! their closest points or friction impulses in a loop that vectorises
+//! (the operations of `yarn_model::terms` and `step`, in their order), and
+//! scatters the results into the slots. After each, the
 //! *segment sums* (the twin of `pairs.wgsl`) add up each segment's slots on
 //! its first node and on its last, in the order of its partners, and each
 //! node takes the sum of the segment it starts and then of the one it ends,
@@ -23,9 +27,9 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use yarn_model::self_contact::PairSearch;
-use yarn_model::step::{cap, segment_end, self_contact_friction_at};
+use yarn_model::step::{cap, segment_end};
 use yarn_model::terms::{Closest, closest_gap, self_contact_push};
-use yarn_model::{Model, Real, V3};
+use yarn_model::{Coefficients, Model, Real, V3};
 
 use super::field::{BLOCK, BlockMut, Field};
 
@@ -224,12 +228,17 @@ impl<T: Real> SelfContacts<T> {
     /// [`yarn_model::terms::self_contact_forces`], zero out of reach. A
     /// pair whose distance at the build, less how far its nodes have moved
     /// since, is still out of reach cannot touch, and is not measured.
+    /// The bound and the loads of the pairs it keeps run first, in one
+    /// scalar loop, so that their closest points
+    /// ([`PairScratch::closest_points`]) are found in a loop that
+    /// vectorises.
     pub(crate) fn forces_block(
         &self,
         model: &Model<T>,
         x: &Field<T>,
         block: usize,
         (out, active, closest): (&mut BlockMut<'_, T>, &mut [bool], &mut [Closest<T>]),
+        scratch: &mut PairScratch<T>,
     ) {
         let reach = T::of(2.0 * model.contact_rule().radius());
         // A thousandth of a radius for the rounding of the bound's terms.
@@ -237,21 +246,30 @@ impl<T: Real> SelfContacts<T> {
         let k_sc = model.coeffs().self_contact;
         let first = block * PAIRS_PER_BLOCK;
         let moved = |i: u32| self.moved[i as usize];
-        for (j, (active, closest)) in active.iter_mut().zip(closest).enumerate() {
+        scratch.measured.clear();
+        for (j, active) in active.iter_mut().enumerate() {
             let nodes = self.nodes[first + j];
             let nearest =
                 self.built_gap[first + j] - moved(nodes[0]).max(moved(nodes[1])) - moved(nodes[2]).max(moved(nodes[3]));
-            let f = if nearest >= clear {
-                None
-            } else {
-                let p = nodes.map(|i| x.get(i as usize));
-                *closest = Closest::of(&p[0], &p[1], &p[2], &p[3]);
-                self_contact_push(closest, reach, k_sc)
-            };
-            *active = f.is_some();
+            *active = false;
+            // A NaN bound is measured.
+            if !(nearest >= clear) {
+                let m = scratch.measured.len();
+                for (end, i) in scratch.ends.iter_mut().zip(nodes) {
+                    end.set(m, x.get(i as usize));
+                }
+                scratch.measured.push(j);
+            }
+        }
+        scratch.closest_points();
+        for (m, &j) in scratch.measured.iter().enumerate() {
+            let pair = scratch.closest(m);
             // A pair that does not push is never read.
-            for (k, f) in f.into_iter().flatten().enumerate() {
-                (out.x[4 * j + k], out.y[4 * j + k], out.z[4 * j + k]) = (f.x, f.y, f.z);
+            if let Some(f) = self_contact_push(&pair, reach, k_sc) {
+                (active[j], closest[j]) = (true, pair);
+                for (k, f) in f.into_iter().enumerate() {
+                    (out.x[4 * j + k], out.y[4 * j + k], out.z[4 * j + k]) = (f.x, f.y, f.z);
+                }
             }
         }
     }
@@ -259,17 +277,34 @@ impl<T: Real> SelfContacts<T> {
     /// The friction change of pairs block `block` from x (the force
     /// pass's closest points) and `v` (v*), into `out`:
     /// [`yarn_model::step::self_contact_friction`], zero where it returns
-    /// `None`.
-    pub(crate) fn friction_block(&self, model: &Model<T>, v: &Field<T>, block: usize, out: &mut BlockMut<'_, T>) {
+    /// `None`. The pushing pairs' velocities and closest points are
+    /// gathered first, so that their impulses ([`PairScratch::friction_impulses`])
+    /// are found in a loop that vectorises.
+    pub(crate) fn friction_block(
+        &self,
+        model: &Model<T>,
+        v: &Field<T>,
+        block: usize,
+        out: &mut BlockMut<'_, T>,
+        scratch: &mut PairScratch<T>,
+    ) {
         let reach = T::of(2.0 * model.contact_rule().radius());
-        let c = model.coeffs();
         let first = block * PAIRS_PER_BLOCK;
+        scratch.measured.clear();
         // A pair that does not push is never read.
         for j in (0..out.x.len() / 4).filter(|&j| self.active[first + j]) {
-            let w = self.nodes[first + j].map(|i| v.get(i as usize));
-            let dv = self_contact_friction_at(&self.closest[first + j], [&w[0], &w[1], &w[2], &w[3]], reach, c)
-                .unwrap_or([V3::zeros(); 4]);
-            for (k, dv) in dv.into_iter().enumerate() {
+            let m = scratch.measured.len();
+            for (end, i) in scratch.ends.iter_mut().zip(self.nodes[first + j]) {
+                end.set(m, v.get(i as usize));
+            }
+            let Closest { gap, distance, s, t } = self.closest[first + j];
+            scratch.gap.set(m, gap);
+            (scratch.distance[m], scratch.s[m], scratch.t[m]) = (distance, s, t);
+            scratch.measured.push(j);
+        }
+        scratch.friction_impulses(reach, model.coeffs());
+        for (m, &j) in scratch.measured.iter().enumerate() {
+            for (k, dv) in scratch.friction_change(m).into_iter().enumerate() {
                 (out.x[4 * j + k], out.y[4 * j + k], out.z[4 * j + k]) = (dv.x, dv.y, dv.z);
             }
         }
@@ -282,6 +317,140 @@ impl<T: Real> SelfContacts<T> {
         let none = SegmentSums::default();
         let (own, before) = (if own { &self.sums[i] } else { &none }, prev.map_or(&none, |p| &self.sums[p as usize]));
         cap(own.first + before.last, own.first_longest.max(before.last_longest))
+    }
+}
+
+/// Per-thread working memory of the pair passes over one block of pairs:
+/// which of them are measured, their four nodes' values gathered by
+/// component, and what the pass finds for each, so that the pair
+/// arithmetic runs in loops that vectorise between a scalar gather and a
+/// scalar scatter.
+#[derive(Debug, Clone)]
+pub(crate) struct PairScratch<T> {
+    /// The pairs measured, by their index in the block.
+    measured: Vec<usize>,
+    /// Per measured pair: the positions (force pass) or velocities
+    /// (friction pass) of its nodes a, a's next, b, b's next.
+    ends: [Field<T>; 4],
+    /// Per measured pair: its closest points ([`Closest`]).
+    gap: Field<T>,
+    distance: Vec<T>,
+    s: Vec<T>,
+    t: Vec<T>,
+    /// Per measured pair: its friction impulse (before its nodes' shares)
+    /// and its slip.
+    impulse: Field<T>,
+    slip: Vec<T>,
+}
+
+impl<T: Real> PairScratch<T> {
+    pub(crate) fn new() -> Self {
+        let field = || Field::zeros(PAIRS_PER_BLOCK);
+        Self {
+            measured: Vec::with_capacity(PAIRS_PER_BLOCK),
+            ends: std::array::from_fn(|_| field()),
+            gap: field(),
+            distance: vec![T::zero(); PAIRS_PER_BLOCK],
+            s: vec![T::zero(); PAIRS_PER_BLOCK],
+            t: vec![T::zero(); PAIRS_PER_BLOCK],
+            impulse: field(),
+            slip: vec![T::zero(); PAIRS_PER_BLOCK],
+        }
+    }
+
+    /// The closest points of measured pair `m`.
+    fn closest(&self, m: usize) -> Closest<T> {
+        Closest { gap: self.gap.get(m), distance: self.distance[m], s: self.s[m], t: self.t[m] }
+    }
+
+    /// The closest points of the measured pairs from their positions in
+    /// `ends`: the operations of [`yarn_model::terms::closest_gap`] in the
+    /// same order, so the rounding matches, with selects for its branches.
+    fn closest_points(&mut self) {
+        let m = self.measured.len();
+        let Self { ends: [p0, p1, q0, q1], gap, distance, s: s_out, t: t_out, .. } = self;
+        // Written out rather than with arrays' `map`, which is not always
+        // inlined: the loop vectorises only where the slices' lengths are
+        // seen to be `m`.
+        let (p0, p1, q0, q1) = (p0.prefix(m), p1.prefix(m), q0.prefix(m), q1.prefix(m));
+        let (gx, gy, gz) = (&mut gap.x[..m], &mut gap.y[..m], &mut gap.z[..m]);
+        let (distance, s_out, t_out) = (&mut distance[..m], &mut s_out[..m], &mut t_out[..m]);
+        let (zero, one, flat) = (T::zero(), T::one(), T::of(1e-6));
+        let pick = |condition: bool, yes: T, no: T| if condition { yes } else { no };
+        let unit = |x: T| pick(x < zero, zero, pick(x > one, one, x));
+        let dot = |a: [T; 3], b: [T; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        for k in 0..m {
+            let (p0k, q0k) = ([p0[0][k], p0[1][k], p0[2][k]], [q0[0][k], q0[1][k], q0[2][k]]);
+            let u = [p1[0][k] - p0k[0], p1[1][k] - p0k[1], p1[2][k] - p0k[2]];
+            let v = [q1[0][k] - q0k[0], q1[1][k] - q0k[1], q1[2][k] - q0k[2]];
+            let w = [p0k[0] - q0k[0], p0k[1] - q0k[1], p0k[2] - q0k[2]];
+            let (a, e, f, c, b) = (dot(u, u), dot(v, v), dot(v, w), dot(u, w), dot(u, v));
+            // Every branch's value is computed and one is selected.
+            let det = a * e - b * b;
+            let s = pick(det > flat * a * e, unit((b * f - c * e) / det), zero);
+            let t = (b * s + f) / e;
+            let (below, above) = (t < zero, t > one);
+            let s_below = unit(-c / a);
+            let s = pick(below, s_below, pick(above, unit((b - c) / a), s));
+            let t = pick(below, zero, pick(above, one, t));
+            // Where a segment has no length.
+            let (no_u, no_v) = (a <= zero, e <= zero);
+            let s = pick(no_u, zero, pick(no_v, s_below, s));
+            let t = pick(no_u, pick(e > zero, unit(f / e), zero), pick(no_v, zero, t));
+            let gap = |i: usize| p0k[i] + u[i] * s - q0k[i] - v[i] * t;
+            let g = [gap(0), gap(1), gap(2)];
+            (gx[k], gy[k], gz[k]) = (g[0], g[1], g[2]);
+            distance[k] = dot(g, g).sqrt();
+            (s_out[k], t_out[k]) = (s, t);
+        }
+    }
+
+    /// The friction impulses of the measured pairs, which push, into
+    /// `impulse` and their slips into `slip`, from their closest points and
+    /// their nodes' velocities in `ends`: the operations of
+    /// [`yarn_model::step::self_contact_friction_at`] in the same order,
+    /// up to the shares of the impulse, which [`Self::friction_change`]
+    /// takes. The loop writes four rows rather than the twelve of the
+    /// changes: writing twelve, it was not vectorised (seen in the
+    /// disassembly).
+    fn friction_impulses(&mut self, reach: T, c: &Coefficients<T>) {
+        let m = self.measured.len();
+        let Self { ends, gap, distance, s, t, impulse, slip: slip_out, .. } = self;
+        let (v0, v1, v2, v3) = (ends[0].prefix(m), ends[1].prefix(m), ends[2].prefix(m), ends[3].prefix(m));
+        let (gx, gy, gz, distance, s, t) = (&gap.x[..m], &gap.y[..m], &gap.z[..m], &distance[..m], &s[..m], &t[..m]);
+        let [jx, jy, jz] = impulse.prefix_mut(m);
+        let slip_out = &mut slip_out[..m];
+        let (zero, one) = (T::zero(), T::one());
+        let limit = c.friction * c.self_contact_impulse;
+        for k in 0..m {
+            let d = distance[k];
+            let n = [gx[k] / d, gy[k] / d, gz[k] / d];
+            let shares = [one - s[k], s[k], one - t[k], t[k]];
+            let relative = |i: usize| {
+                (v2[i][k] * shares[2] + v3[i][k] * shares[3]) - (v0[i][k] * shares[0] + v1[i][k] * shares[1])
+            };
+            let w = [relative(0), relative(1), relative(2)];
+            let normal = w[0] * n[0] + w[1] * n[1] + w[2] * n[2];
+            let wt = [w[0] - n[0] * normal, w[1] - n[1] * normal, w[2] - n[2] * normal];
+            let slip = (wt[0] * wt[0] + wt[1] * wt[1] + wt[2] * wt[2]).sqrt();
+            let inverse_mass =
+                zero + shares[0] * shares[0] + shares[1] * shares[1] + shares[2] * shares[2] + shares[3] * shares[3];
+            let cut = limit * (reach - d) * inverse_mass;
+            let retention = (one - cut / slip).max(zero);
+            let scale = (retention - one) / inverse_mass;
+            (jx[k], jy[k], jz[k], slip_out[k]) = (wt[0] * scale, wt[1] * scale, wt[2] * scale, slip);
+        }
+    }
+
+    /// Measured pair `m`'s friction change on its four nodes, from its
+    /// impulse ([`Self::friction_impulses`]): zero where it does not slip.
+    fn friction_change(&self, m: usize) -> [V3<T>; 4] {
+        if self.slip[m] <= T::zero() {
+            return [V3::zeros(); 4];
+        }
+        let (j, s, t) = (self.impulse.get(m), self.s[m], self.t[m]);
+        let one = T::one();
+        [-(j * (one - s)), -(j * s), j * (one - t), j * t]
     }
 }
 
@@ -316,3 +485,95 @@ fn find_pairs<T: Real>(model: &Model<T>, positions: &[V3<T>], exec: super::Exec)
 
 /// Cells of the pair search per parallel task.
 const PIECES_PER_TASK: usize = 4096;
+
+#[cfg(test)]
+mod tests {
+    use yarn_model::step::self_contact_friction_at;
+    use yarn_model::terms::Closest;
+    use yarn_model::{Coefficients, Params, Real, V3};
+
+    use super::{PAIRS_PER_BLOCK, PairScratch};
+
+    /// Pairs of segments that exercise every branch of the closest points:
+    /// crossing, parallel, end to middle, touching, and with no length.
+    fn pairs<T: Real>() -> Vec<[V3<T>; 4]> {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            T::of((state >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0)
+        };
+        let mut point = move || V3::new(next(), next(), next());
+        let mut pairs = Vec::new();
+        for k in 0..2048 {
+            let [p0, p1, q0, q1] = [point(), point(), point(), point()];
+            pairs.push(match k % 8 {
+                0 => [p0, p0, q0, q1],
+                1 => [p0, p1, q0, q0],
+                2 => [p0, p0, q0, q0],
+                3 => [p0, p1, p0 + q0 * T::of(0.1), p1 + q0 * T::of(0.1)],
+                4 => [p0, p1, p1, q1],
+                5 => [p0, p1, p0, p1],
+                _ => [p0, p1, q0, q1],
+            });
+        }
+        pairs
+    }
+
+    /// The vectorised closest points and friction are the scalar terms',
+    /// bit for bit, so `Serial` still equals the GPU's gather mode.
+    fn matches_the_scalar_terms<T: Real>() {
+        let params = Params { self_contact_stiffness: 1600.0, ..Params::default() };
+        let c = Coefficients::<T>::new(&params);
+        let reach = T::of(1.5);
+        let mut scratch = PairScratch::<T>::new();
+        let (mut pushing, mut slipping) = (0, 0);
+        for block in pairs::<T>().chunks(PAIRS_PER_BLOCK) {
+            scratch.measured = (0..block.len()).collect();
+            for (m, pair) in block.iter().enumerate() {
+                for (end, p) in scratch.ends.iter_mut().zip(pair) {
+                    end.set(m, *p);
+                }
+            }
+            scratch.closest_points();
+            let found: Vec<Closest<T>> = (0..block.len()).map(|m| scratch.closest(m)).collect();
+            for (pair, found) in block.iter().zip(&found) {
+                let expected = Closest::of(&pair[0], &pair[1], &pair[2], &pair[3]);
+                assert_eq!(format!("{found:?}"), format!("{expected:?}"), "{pair:?}");
+            }
+            // Friction at the pairs that push, with velocities of the same
+            // kind as the positions.
+            scratch.measured = (0..block.len()).filter(|&m| found[m].within(reach)).collect();
+            for (k, &m) in scratch.measured.clone().iter().enumerate() {
+                let v = [block[m][1] - block[m][0], block[m][3], block[m][2] * T::of(3.0), V3::zeros()];
+                for (end, v) in scratch.ends.iter_mut().zip(v) {
+                    end.set(k, v);
+                }
+                scratch.gap.set(k, found[m].gap);
+                (scratch.distance[k], scratch.s[k], scratch.t[k]) = (found[m].distance, found[m].s, found[m].t);
+            }
+            scratch.friction_impulses(reach, &c);
+            for (k, &m) in scratch.measured.iter().enumerate() {
+                let v =
+                    [scratch.ends[0].get(k), scratch.ends[1].get(k), scratch.ends[2].get(k), scratch.ends[3].get(k)];
+                let expected = self_contact_friction_at(&found[m], [&v[0], &v[1], &v[2], &v[3]], reach, &c);
+                slipping += usize::from(expected.is_some());
+                let expected = expected.unwrap_or([V3::zeros(); 4]);
+                assert_eq!(format!("{:?}", scratch.friction_change(k)), format!("{expected:?}"), "{:?}", block[m]);
+            }
+            pushing += scratch.measured.len();
+        }
+        assert!(pushing > 200 && slipping > 200, "{pushing} pushing, {slipping} slipping");
+    }
+
+    #[test]
+    fn vectorised_pair_arithmetic_matches_the_scalar_terms_in_f32() {
+        matches_the_scalar_terms::<f32>();
+    }
+
+    #[test]
+    fn vectorised_pair_arithmetic_matches_the_scalar_terms_in_f64() {
+        matches_the_scalar_terms::<f64>();
+    }
+}
