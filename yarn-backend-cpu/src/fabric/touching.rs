@@ -252,14 +252,15 @@ impl<T: Real> SelfContacts<T> {
             let nearest =
                 self.built_gap[first + j] - moved(nodes[0]).max(moved(nodes[1])) - moved(nodes[2]).max(moved(nodes[3]));
             *active = false;
-            // A NaN bound is measured.
-            if !(nearest >= clear) {
-                let m = scratch.measured.len();
-                for (end, i) in scratch.ends.iter_mut().zip(nodes) {
-                    end.set(m, x.get(i as usize));
-                }
-                scratch.measured.push(j);
+            // A NaN bound fails the comparison, so that pair is measured.
+            if nearest >= clear {
+                continue;
             }
+            let m = scratch.measured.len();
+            for (end, i) in scratch.ends.iter_mut().zip(nodes) {
+                end.set(m, x.get(i as usize));
+            }
+            scratch.measured.push(j);
         }
         scratch.closest_points();
         for (m, &j) in scratch.measured.iter().enumerate() {
