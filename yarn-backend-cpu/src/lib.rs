@@ -267,7 +267,8 @@ mod tests {
     }
 
     /// A patch dropped on a floor with self-contact on: `Serial<f64>`
-    /// follows the reference to rounding, `Serial<f32>` and `Rayon` agree
+    /// takes a substep as the reference does to rounding and follows it
+    /// closely over the drop, `Serial<f32>` and `Rayon` agree
     /// bit for bit, the list is rebuilt far less often than every substep,
     /// and nothing ends inside the floor.
     #[test]
@@ -294,8 +295,31 @@ mod tests {
         let (serial, serial_builds) = drop_on(Serial::<f64>::new(), &fabric, &params, &colliders, substeps);
         let (single, _) = drop_on(Serial::<f32>::new(), &fabric, &params, &colliders, substeps);
         let (parallel, _) = drop_on(Rayon::with_threads(2).unwrap(), &fabric, &params, &colliders, substeps);
+        // Each substep agrees to rounding (below), but friction at a pair
+        // that barely slips turns along its slip, whose direction rounding
+        // decides, so the two part by about 6e-9 over the 400 substeps.
         let worst = reference.positions.iter().zip(&serial.positions).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
-        assert!(worst < 1e-9, "serial f64 strays {worst} from the reference");
+        assert!(worst < 2e-8, "serial f64 strays {worst} from the reference");
+        let (midway, _) = drop_on(Reference::<f64>::new(), &fabric, &params, &colliders, substeps / 5);
+        fn one_substep<B: Backend<Real = f64>>(
+            mut backend: B,
+            fabric: &Fabric,
+            params: &Params,
+            colliders: &[yarn_model::Collider],
+            from: &State<f64>,
+        ) -> State<f64> {
+            backend.load(fabric, params).unwrap();
+            backend.set_colliders(colliders).unwrap();
+            backend.write_state(from).unwrap();
+            backend.advance(1).unwrap();
+            backend.state().unwrap()
+        }
+        let (a, b) = (
+            one_substep(Reference::<f64>::new(), &fabric, &params, &colliders, &midway),
+            one_substep(Serial::<f64>::new(), &fabric, &params, &colliders, &midway),
+        );
+        let worst = a.velocities.iter().zip(&b.velocities).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+        assert!(worst < 1e-13, "one substep from the same state: serial f64 strays {worst} from the reference");
         assert_eq!(single, parallel, "serial f32 and rayon must agree bit for bit");
         let radius = fabric.yarn_radius();
         let lowest = serial.positions.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);

@@ -22,6 +22,17 @@ struct Quad {
 
 const NO_QUAD: Quad = Quad(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
 
+// `terms::CONTACT_ONSET`: the push's onset as a fraction of the reach, a
+// power of two so that the onset is exact (a test holds it to the Rust one).
+const CONTACT_ONSET: f32 = 0.0625;
+
+// `terms::push_depth`: the push per unit stiffness at `depth` into the
+// reach, depth²/(2ε) up to the onset ε, then depth − ε/2.
+fn push_depth(depth: f32) -> f32 {
+    let onset = mul(p.reach, CONTACT_ONSET);
+    return select(depth - mul(onset, 0.5), div_rounded(mul(depth, depth), onset + onset), depth <= onset);
+}
+
 // `terms::self_contact_forces`, zero out of reach or where the closest
 // points coincide.
 fn pair_forces(p0: vec3<f32>, p1: vec3<f32>, q0: vec3<f32>, q1: vec3<f32>) -> Quad {
@@ -30,7 +41,7 @@ fn pair_forces(p0: vec3<f32>, p1: vec3<f32>, q0: vec3<f32>, q1: vec3<f32>) -> Qu
     if !(d < p.reach && d > 0.0) {
         return NO_QUAD;
     }
-    let push = mul3(c.gap, div_rounded(mul(p.self_contact, p.reach - d), d));
+    let push = mul3(c.gap, div_rounded(mul(p.self_contact, push_depth(p.reach - d)), d));
     let p_share = mul3(push, c.s);
     let q_share = mul3(push, c.t);
     return Quad(push - p_share, p_share, q_share - push, -q_share);
@@ -58,7 +69,7 @@ fn pair_friction(x: Quad, w: Quad) -> Quad {
     }
     let inverse_mass = mul(shares.x, shares.x) + mul(shares.y, shares.y) + mul(shares.z, shares.z)
         + mul(shares.w, shares.w);
-    let cut = mul(mul(mul(p.friction, p.self_impulse), p.reach - d), inverse_mass);
+    let cut = mul(mul(mul(p.friction, p.self_impulse), push_depth(p.reach - d)), inverse_mass);
     let retention = max(1.0 - div_rounded(cut, slip), 0.0);
     let j = mul3(slip_velocity, div_rounded(retention - 1.0, inverse_mass));
     return Quad(-mul3(j, shares.x), -mul3(j, shares.y), mul3(j, shares.z), mul3(j, shares.w));

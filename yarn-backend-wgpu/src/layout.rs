@@ -302,5 +302,7 @@ mod tests {
         assert!(grid.contains(&format!("const MAX_LONG: u32 = {MAX_LONG}u;")));
         assert!(grid.contains(&format!("const MAX_BOX: i32 = {MAX_BOX};")));
         assert!(grid.contains(&format!("const EMPTY: u32 = {:#x}u;", yarn_model::self_contact::grid::EMPTY)));
+        let onset = yarn_model::terms::CONTACT_ONSET;
+        assert!(shaders::TOUCH.contains(&format!("const CONTACT_ONSET: f32 = {onset};")), "CONTACT_ONSET differs");
     }
 }

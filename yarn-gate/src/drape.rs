@@ -37,9 +37,10 @@ pub const DRAPE_GRAVITY: f64 = 9.81;
 /// The self-contact stiffness a drape runs with when its preset has none:
 /// twice the yarn's stretch. Measured on the folded 16x16 drop (3,000
 /// substeps, `drape --fold --self-contact K`), the closest approach over
-/// the run was 1.757 r at 400, 1.828 r at 800, 1.882 r at 1,600 and
-/// 1.893 r at 3,200, and 6,400 diverged at substep 26 (a node in several
-/// contacts at once feels their sum); 1,600 is a factor of four from that.
+/// the run was 1.692 r at 400, 1.763 r at 800, 1.818 r at 1,600, 1.854 r
+/// at 3,200 and 1.881 r at 6,400 (docs/self-contact.md, "Choosing the
+/// stiffness"); with the C1 push it replaced, 6,400 diverged, and 1,600
+/// was a factor of four from that.
 pub const DRAPE_SELF_CONTACT: f64 = 1600.0;
 
 /// The collider shapes `drape` can drop onto.

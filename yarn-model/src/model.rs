@@ -41,8 +41,9 @@ pub struct Coefficients<T> {
     pub friction_impulse: T,
     /// Self-contact stiffness k_sc (0: off).
     pub self_contact: T,
-    /// h k_sc / m: the velocity change per unit self-contact depth on a
-    /// node of unit share, used by the friction filter.
+    /// h k_sc / m: the velocity change per unit of the self-contact push's
+    /// depth ([`crate::terms::push_depth`]) on a node of unit share, used
+    /// by the friction filter.
     pub self_contact_impulse: T,
     /// Collider stiffness k_col.
     pub collider: T,

@@ -58,11 +58,13 @@ pub struct Params {
     /// (default: 0).
     pub sleep_speed: f64,
     /// Self-contact stiffness k_sc: two segments of yarn closer than one
-    /// yarn diameter 2r are pushed apart with the energy ½ k_sc (2r − d)²,
-    /// d their closest distance ([`crate::self_contact`]). 0 turns
-    /// self-contact off. The CPU backends run it; the GPU does not yet.
-    /// 1,600 (twice k_s) held a folded patch dropped on a floor to
-    /// 1.88 r at worst (`yarn-gate drape`) (default: 0).
+    /// yarn diameter 2r are pushed apart with a stiffness that ramps from
+    /// 0 to k_sc over the first r/8 of depth and is k_sc beyond
+    /// ([`crate::terms::self_contact_energy`]), d their closest distance
+    /// ([`crate::self_contact`]). 0 turns self-contact off. Every backend
+    /// runs it but `wgpu`'s fixed point. 1,600 (twice k_s) held a folded
+    /// patch dropped on a floor to 1.82 r at worst (`yarn-gate drape`)
+    /// (default: 0).
     pub self_contact_stiffness: f64,
     /// The skin of the self-contact candidate lists, in yarn radii: a list
     /// holds the pairs within 2r plus this, and is rebuilt once some node

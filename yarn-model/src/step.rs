@@ -6,8 +6,8 @@
 use crate::collider::Surface;
 use crate::self_contact::{Candidates, find_pairs};
 use crate::terms::{
-    Closest, bend_energy, bend_forces, gravity_energy, gravity_force, self_contact_energy, self_contact_forces,
-    spring_energy, spring_force,
+    Closest, bend_energy, bend_forces, gravity_energy, gravity_force, push_depth, self_contact_energy,
+    self_contact_forces, spring_energy, spring_force,
 };
 use crate::{Coefficients, Model, Real, State, V3};
 
@@ -42,7 +42,8 @@ pub struct Energy {
     pub bend: f64,
     /// Σ ½ k_c (d_c − ℓ)² over alive contacts.
     pub contact: f64,
-    /// Σ ½ k_sc (2r − d)² over segment pairs in self-contact.
+    /// Σ of the self-contact energy ([`crate::terms::self_contact_energy`])
+    /// over segment pairs in self-contact.
     pub self_contact: f64,
     /// Σ ½ k_col δ² over nodes pressing into a collider.
     pub collider: f64,
@@ -251,8 +252,9 @@ pub fn friction_change<T: Real>(
 /// w = v_q(t) − v_p(s). An impulse j on the pair changes w by j W, with
 /// W m = (1 − s)² + s² + (1 − t)² + t² the pair's inverse effective mass
 /// (2 for two nodes, as a persistent contact has). Coulomb's limit
-/// |j| ≤ μ h k_sc (2r − d) lets it cut the slip by at most
-/// μ h k_sc (2r − d) W, never past zero; each node then gets its share of
+/// |j| ≤ μ h N, with N = k_sc g(2r − d) the pair's push
+/// ([`crate::terms::push_depth`]), lets it cut the slip by at most
+/// μ h N W, never past zero; each node then gets its share of
 /// j. Summed at a node, the changes are capped by [`capped_sum`], so many
 /// contacts at one node cannot reverse its slip.
 #[inline]
@@ -287,7 +289,7 @@ pub fn self_contact_friction_at<T: Real>(
         return None;
     }
     let inverse_mass = shares.iter().fold(T::zero(), |sum, &share| sum + share * share);
-    let cut = c.friction * c.self_contact_impulse * (reach - d) * inverse_mass;
+    let cut = c.friction * c.self_contact_impulse * push_depth(reach - d, reach) * inverse_mass;
     let retention = (one - cut / slip).max(T::zero());
     let j = wt * ((retention - one) / inverse_mass);
     Some([-(j * shares[0]), -(j * shares[1]), j * shares[2], j * shares[3]])
@@ -818,7 +820,7 @@ mod tests {
     proptest! {
         /// Friction at a self-contact pair, random segments and velocities:
         /// the pair's slip at its closest points shrinks by at most
-        /// μ h k_sc (2r − d) W and never reverses, its normal relative
+        /// μ h k_sc g(2r − d) W and never reverses, its normal relative
         /// velocity is kept, and the nodes' changes carry no net momentum.
         #[test]
         fn self_contact_friction_cuts_the_pairs_slip_without_reversing_it(
@@ -845,7 +847,7 @@ mod tests {
             let after = tangential(at(&after_v));
             let shares = [(1.0 - s), s, (1.0 - t), t];
             let w_m = shares.iter().map(|a| a * a).sum::<f64>();
-            let cut = mu * c.self_contact_impulse * (reach - gap.norm()) * w_m;
+            let cut = mu * c.self_contact_impulse * push_depth(reach - gap.norm(), reach) * w_m;
             let expected = (before.norm() - cut).max(0.0);
             prop_assert!((after.norm() - expected).abs() <= 1e-9 * (1.0 + before.norm()), "slip {} -> {}, not {expected}", before.norm(), after.norm());
             prop_assert!(after.dot(&before) >= -1e-12, "the slip reversed");

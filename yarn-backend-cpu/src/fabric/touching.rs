@@ -28,7 +28,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use yarn_model::self_contact::PairSearch;
 use yarn_model::step::{cap, segment_end};
-use yarn_model::terms::{Closest, closest_gap, self_contact_push};
+use yarn_model::terms::{Closest, closest_gap, push_depth, self_contact_push};
 use yarn_model::{Coefficients, Model, Real, V3};
 
 use super::field::{BLOCK, BlockMut, Field};
@@ -436,7 +436,7 @@ impl<T: Real> PairScratch<T> {
             let slip = (wt[0] * wt[0] + wt[1] * wt[1] + wt[2] * wt[2]).sqrt();
             let inverse_mass =
                 zero + shares[0] * shares[0] + shares[1] * shares[1] + shares[2] * shares[2] + shares[3] * shares[3];
-            let cut = limit * (reach - d) * inverse_mass;
+            let cut = limit * push_depth(reach - d, reach) * inverse_mass;
             let retention = (one - cut / slip).max(zero);
             let scale = (retention - one) / inverse_mass;
             (jx[k], jy[k], jz[k], slip_out[k]) = (wt[0] * scale, wt[1] * scale, wt[2] * scale, slip);
