@@ -57,11 +57,11 @@ pub struct Params {
     /// or the parameters, state or contacts change. 0 never sleeps
     /// (default: 0).
     pub sleep_speed: f64,
-    /// Self-contact stiffness k_sc: two segments of yarn closer than one
-    /// yarn diameter 2r are pushed apart with a stiffness that ramps from
-    /// 0 to k_sc over the first r/8 of depth and is k_sc beyond
-    /// ([`crate::terms::self_contact_energy`]), d their closest distance
-    /// ([`crate::self_contact`]). 0 turns self-contact off. Every backend
+    /// Self-contact stiffness k_sc: two segments of yarn whose closest
+    /// distance is under one yarn diameter 2r ([`crate::self_contact`])
+    /// are pushed apart with a stiffness that ramps from 0 to k_sc over the
+    /// first r/8 of depth and is k_sc beyond
+    /// ([`crate::terms::self_contact_energy`]). 0 turns self-contact off. Every backend
     /// runs it but `wgpu`'s fixed point. 1,600 (twice k_s) held a folded
     /// patch dropped on a floor to 1.82 r at worst (`yarn-gate drape`)
     /// (default: 0).

@@ -192,8 +192,9 @@ pub fn self_contact_energy<T: Real>(p0: &V3<T>, p1: &V3<T>, q0: &V3<T>, q1: &V3<
 /// least `reach` apart or their closest points coincide (no direction).
 ///
 /// With closest points c_p, c_q at (s, t) and n = (c_p − c_q)/d, the pair
-/// is pushed apart by k g(D − d) n, g the [`push_depth`], shared by the segments' nodes as the
-/// closest points sit on them: (1 − s, s) on p and −(1 − t, t) on q.
+/// is pushed apart by k g(D − d) n, g the [`push_depth`], shared by the
+/// segments' nodes as the closest points sit on them: (1 − s, s) on p and
+/// −(1 − t, t) on q.
 /// This is the exact gradient wherever the closest points are unique:
 /// d is the minimum over (s, t) of a convex distance, so moving (s, t)
 /// changes it only to second order (Danskin's theorem), and the clamped
@@ -374,7 +375,7 @@ mod tests {
             let shift = P::new(0.0, reach - depth - 1.0, 0.0);
             let (q0, q1) = (q0 + shift, q1 + shift);
             let forces = self_contact_forces(&p0, &p1, &q0, &q1, reach, k).expect("within reach");
-            assert!((forces[0] + forces[1]).norm() - k * push_depth(depth, reach) < 1e-9, "depth {depth}");
+            assert!(((forces[0] + forces[1]).norm() - k * push_depth(depth, reach)).abs() < 1e-9, "depth {depth}");
             assert_force_is_minus_gradient(&[p0, p1, q0, q1], &forces, |p| {
                 self_contact_energy(&p[0], &p[1], &p[2], &p[3], reach, k)
             });
