@@ -390,6 +390,37 @@ mod tests {
         check(Rayon::with_threads(2).unwrap());
     }
 
+    /// A divergence is judged on the state the substep ends with, as the
+    /// reference judges it: a pinned node flung at 100 times the limit, with
+    /// friction on, is stopped by its pin, and every CPU backend runs on
+    /// where the reference does, to its state within rounding.
+    #[test]
+    fn a_node_its_pin_stops_has_not_diverged() {
+        fn flung<B: Backend>(mut backend: B) -> State<f64> {
+            let fabric = patch();
+            backend.load(&fabric, &Params::default()).unwrap();
+            backend.set_pins(&[Pin { node: 10, target: fabric.positions()[10] }]).unwrap();
+            backend.advance(5).unwrap();
+            let mut state = backend.state().unwrap();
+            let limit = backend.model().unwrap().divergence_speed();
+            state.velocities[10].y = <B::Real as Real>::of(100.0 * limit);
+            backend.write_state(&state).unwrap();
+            let name = backend.name();
+            backend.advance(3).unwrap_or_else(|e| panic!("{name}: {e}"));
+            backend.state().unwrap().cast()
+        }
+        let reference = flung(Reference::<f64>::new());
+        assert_eq!(reference.velocities[10], V3::zeros(), "the pin stops its node");
+        let reference_f32 = flung(Reference::<f32>::new());
+        let gap = |a: &State<f64>, b: &State<f64>| {
+            a.positions.iter().zip(&b.positions).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max)
+        };
+        assert!(gap(&flung(Serial::<f64>::new()), &reference) < 1e-12);
+        let serial_f32 = flung(Serial::<f32>::new());
+        assert!(gap(&serial_f32, &reference_f32) < 1e-5);
+        assert_eq!(flung(Rayon::with_threads(2).unwrap()), serial_f32);
+    }
+
     /// A settled fabric falls asleep, a grab wakes what it moves, and the
     /// result stays within 0.15 r of the same run without sleeping (the
     /// grab draws its node 10 units, 11 r, out of the fabric).

@@ -18,8 +18,9 @@
 //   every segment in row k.
 
 // `lists[STALE]`: some node has moved half the skin since the last build
-// (set by the move, read by `plan.wgsl`); `lists[SPEEDING]`: some node's v*
-// passed `p.max_speed` (set by the step, read by `check.wgsl`). Any thread
+// (set by the move, read by `plan.wgsl`); `lists[SPEEDING]`: some node's
+// velocity after friction passed `p.max_speed` (set by the pass that moves
+// it, read by `check.wgsl`). Any thread
 // may set either; all write the same 1.
 const STALE: u32 = 0u;
 const SPEEDING: u32 = 1u;

@@ -250,9 +250,10 @@ fn self_contact_friction(i: u32) -> vec3<f32> {
     return cap(own.xyz + before.xyz, max(own.w, before.w));
 }
 
-// After the damped velocity update: flag a node whose v* passed the
-// divergence speed, which with self-contact is half a radius a substep
-// (`Model::divergence_speed`); `check.wgsl` reports it.
+// Where a node's velocity is final (after friction, or v* without it):
+// flag a node whose velocity passed the divergence speed, which with
+// self-contact is half a radius a substep (`Model::divergence_speed`);
+// `check.wgsl` reports it.
 fn watch_speed(velocity: vec3<f32>) {
     if (p.flags & SELF_CONTACT) != 0u && !all(abs(velocity) <= vec3<f32>(p.max_speed)) {
         lists[SPEEDING] = 1u;

@@ -15,8 +15,8 @@ fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     }
     let velocity = damped_velocity(v[i].xyz, with_colliders(total_force(i), x[i].xyz));
     v[i] = vec4<f32>(velocity, 0.0);
-    watch_speed(velocity);
     if (p.flags & FRICTION_ON) == 0u {
+        watch_speed(velocity);
         let at = x[i].xyz + mul3(velocity, p.h);
         out[i] = vec4<f32>(at, 0.0);
         watch_move(i, at);

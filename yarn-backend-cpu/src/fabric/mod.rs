@@ -73,8 +73,8 @@ pub(crate) struct CpuFabric<T: Real> {
     exec: Exec,
     /// Substeps completed since load.
     substeps: u64,
-    /// Set by a block whose damped velocity passed the divergence speed (or
-    /// is not finite) in the last substep.
+    /// Set by a block whose velocity, after friction, passed the divergence
+    /// speed (or is not finite) in the last substep.
     diverged: AtomicBool,
     /// The state at the start of the current `advance`, to put back if it
     /// diverges.

@@ -11,7 +11,9 @@
 //!    segment its nodes touch, the bending forces of every joint they
 //!    touch, then per node the sum of its segments, joints and contacts
 //!    (through the per-node contact lists, in contact order), and the
-//!    damped velocity update, whose divergence test is fused in. The two
+//!    damped velocity update, whose divergence test is fused in when
+//!    there is no friction to change it (with friction, the move tests the
+//!    velocity after friction). The two
 //!    segments and joints a block shares with each neighbour are computed
 //!    by both, so blocks never wait on each other. The loops take a node's
 //!    neighbours along the yarn to be the nodes beside it; the few nodes
@@ -142,6 +144,16 @@ impl<T: Real> CpuFabric<T> {
         };
         run_pass!(self.exec, field.blocks_mut().enumerate(), field.par_blocks_mut().enumerate(), TASK_BLOCKS, body);
         field.to_vectors(forces);
+    }
+
+    /// Raise the divergence flag if a velocity component in `v` is past
+    /// `limit` or not finite (a NaN fails the comparison, and the loop still
+    /// vectorises).
+    #[inline]
+    fn flag_speeding(&self, v: &[T], limit: T) {
+        if !v.iter().fold(true, |within, v| within & (v.abs() <= limit)) {
+            self.diverged.store(true, Ordering::Relaxed);
+        }
     }
 
     /// Run `work` with this thread's scratch.
@@ -447,17 +459,13 @@ impl<T: Real> CpuFabric<T> {
                 for ((v, f), (next_x, x)) in
                     v.components().into_iter().zip(forces).zip(next_x.components().into_iter().zip(x))
                 {
-                    // A NaN fails the comparison, so it is not `within`; the
-                    // loop still vectorises.
-                    let mut within = true;
                     for (v, f) in v.iter_mut().zip(f) {
                         *v = (*v + *f * c.h_over_m) * c.damping_factor;
-                        within &= v.abs() <= limit;
                     }
-                    if !within {
-                        this.diverged.store(true, Ordering::Relaxed);
-                    }
+                    // With friction, v* is not the velocity the node moves
+                    // with: the move tests the one after friction.
                     if !apply_friction {
+                        this.flag_speeding(v, limit);
                         for ((next_x, x), v) in next_x.iter_mut().zip(x).zip(&*v) {
                             *next_x = *x + *v * c.h;
                         }
@@ -528,6 +536,7 @@ impl<T: Real> CpuFabric<T> {
         stages::stop(&mut self.clock, "friction", FRICTION, started);
         let started = stages::start(&self.clock);
         let (h, half) = (self.model.coeffs().h, T::of(0.5));
+        let limit = T::of(self.model.divergence_speed());
         let self_friction = self.model.self_contact() && self.model.coeffs().friction > T::zero();
         let mut positions = std::mem::take(&mut self.positions);
         let mut velocities = std::mem::take(&mut self.velocities);
@@ -571,6 +580,7 @@ impl<T: Real> CpuFabric<T> {
                 }
             });
             for (x, v) in x.components().into_iter().zip(v.components()) {
+                this.flag_speeding(v, limit);
                 for (x, v) in x.iter_mut().zip(&*v) {
                     *x += *v * h;
                 }

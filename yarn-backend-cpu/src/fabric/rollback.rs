@@ -32,11 +32,11 @@ impl<T: Real> Rollback for CpuFabric<T> {
                 let limit = self.model.divergence_speed();
                 let mut state = State::default();
                 self.read_state(&mut state);
-                // The flag looks at v* before friction and pins; the state
-                // after them names the node, or the first node past the
-                // limit before them if they tamed it.
-                let (node, speed) = state.first_diverged(limit).unwrap_or((0, f64::NAN));
-                return Err(BackendError::Diverged { substep: self.substeps + done, node, speed, limit });
+                // The flag looks at the velocity before the pins; a node the
+                // pins stopped has not diverged (the reference's rule).
+                if let Some((node, speed)) = state.first_diverged(limit) {
+                    return Err(BackendError::Diverged { substep: self.substeps + done, node, speed, limit });
+                }
             }
         }
         self.substeps += substeps;
