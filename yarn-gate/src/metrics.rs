@@ -211,6 +211,29 @@ pub fn straight_grips(fabric: &Fabric, positions: &[Vector3<f64>], axis: Axis, s
     near_nodes.iter().map(|&n| place(n, Vector3::zeros())).chain(far_nodes.iter().map(|&n| place(n, shift))).collect()
 }
 
+/// A clear start for the hold whose grips are
+/// [`straight_grips`]`(fabric, positions, axis, separation)`: the assembled
+/// patch stretched affinely along `axis` about its near grip until the
+/// grips' centroids are `separation` apart, carried rigidly into the frame
+/// the patch at `positions` sits in, at rest. Its grips sit at their
+/// targets up to the stretch across each grip's own depth. Starting from
+/// the patch at `positions` instead would carry a rolled edge straight
+/// through the fabric it has rolled over.
+pub fn flat_between_grips(fabric: &Fabric, positions: &[Vector3<f64>], axis: Axis, separation: f64) -> State<f64> {
+    let (near, far) = axis.grips();
+    let assembled = State::at_rest(fabric);
+    let direction = axis.direction(fabric);
+    let along = |nodes: &[u32]| {
+        nodes.iter().map(|&i| assembled.positions[i as usize].dot(&direction)).sum::<f64>() / nodes.len() as f64
+    };
+    let near_nodes = fabric.side_nodes(near);
+    let strain = separation / (along(&fabric.side_nodes(far)) - along(&near_nodes)) - 1.0;
+    let mut flat = stretched(&assembled, &near_nodes, direction, strain);
+    let (rotation, translation) = interior_frame(fabric, positions);
+    flat.positions.iter_mut().for_each(|p| *p = rotation * *p + translation);
+    flat
+}
+
 /// The direction of `axis` in the frame the patch at `positions` sits in.
 pub fn axis_in_frame(fabric: &Fabric, positions: &[Vector3<f64>], axis: Axis) -> Vector3<f64> {
     interior_frame(fabric, positions).0 * axis.direction(fabric)
@@ -385,6 +408,49 @@ fn advance_in_chunks<B: Backend>(
 mod tests {
     use super::*;
     use yarn_topology::{Chart, Geometry};
+
+    /// A hold's flat start is the assembled patch in the frame of the
+    /// patch's interior, however far its edges rolled: unstretched at the
+    /// assembled separation, and otherwise stretched so that its grips'
+    /// centroids are the separation apart, each grip node within the
+    /// stretch across its grip's depth of its target.
+    #[test]
+    fn a_hold_starts_flat_between_its_grips_however_far_the_edges_rolled() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(6, 6).unwrap(), &Geometry::default()).unwrap();
+        let rotation = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 0.3);
+        let shift = Vector3::new(1.0, -2.0, 0.5);
+        let moved: Vec<_> = fabric.positions().iter().map(|p| rotation * p + shift).collect();
+        let lift = rotation * Vector3::z() * (4.0 * fabric.yarn_radius());
+        let rolled: Vec<_> =
+            moved.iter().zip(fabric.boundary()).map(|(p, b)| if b.is_interior() { *p } else { p + lift }).collect();
+        let gap =
+            |a: &[Vector3<f64>], b: &[Vector3<f64>]| a.iter().zip(b).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        for axis in [Axis::Course, Axis::Wale] {
+            let (near, far) = (fabric.side_nodes(axis.grips().0), fabric.side_nodes(axis.grips().1));
+            let direction = axis.direction(&fabric);
+            let along = |x: &[Vector3<f64>], nodes: &[u32]| {
+                nodes.iter().map(|&i| x[i as usize].dot(&(rotation * direction))).sum::<f64>() / nodes.len() as f64
+            };
+            let assembled = along(&moved, &far) - along(&moved, &near);
+            let flat = flat_between_grips(&fabric, &rolled, axis, assembled);
+            assert!(gap(&flat.positions, &moved) < 1e-9, "{axis:?}: not the assembled patch in its frame");
+            assert!(flat.velocities.iter().all(|v| *v == Vector3::zeros()));
+
+            let separation = 1.3 * assembled;
+            let flat = flat_between_grips(&fabric, &rolled, axis, separation);
+            assert!((along(&flat.positions, &far) - along(&flat.positions, &near) - separation).abs() < 1e-9);
+            let depth = far.iter().map(|&i| fabric.positions()[i as usize].dot(&direction));
+            let depth = depth.clone().fold(f64::MIN, f64::max) - depth.fold(f64::MAX, f64::min);
+            let off = straight_grips(&fabric, &rolled, axis, separation)
+                .iter()
+                .map(|pin| (flat.positions[pin.node as usize] - pin.target).norm())
+                .fold(0.0, f64::max);
+            assert!(
+                off <= 0.3 * depth + 1e-9 && off > 0.0,
+                "{axis:?}: a grip node {off} from its target (depth {depth})"
+            );
+        }
+    }
 
     #[test]
     fn a_flat_patch_reads_zero_curl_and_a_rolled_one_does_not() {

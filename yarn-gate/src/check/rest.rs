@@ -254,8 +254,13 @@ struct Probe {
 }
 
 impl Probe {
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the probe's whole setting: path, model, patch, rest, axis, size, budget, progress"
+    )]
     fn new<S: Settle>(
         settler: &mut S,
+        model: &Model<f64>,
         fabric: &Fabric,
         relaxed: &Rest,
         axis: Axis,
@@ -280,8 +285,14 @@ impl Probe {
             state
         };
         let grips = metrics::straight_grips(fabric, at, axis, separation);
-        let unstrained = settler
-            .settle(&start(&relaxed.state, &grips, 0.0), &grips, budget, &mut |w| progress(label0, w, budget))?;
+        // With self-contact, edges that rolled over the fabric and are put
+        // straight pass through it (`Model::check_apart` refuses that
+        // start); the hold then starts flat between its grips.
+        let mut first = start(&relaxed.state, &grips, 0.0);
+        if model.check_apart(&first.positions).is_err() {
+            first = start(&metrics::flat_between_grips(fabric, at, axis, separation), &grips, 0.0);
+        }
+        let unstrained = settler.settle(&first, &grips, budget, &mut |w| progress(label0, w, budget))?;
         let grips = metrics::straight_grips(fabric, at, axis, separation * (1.0 + PULL_STRAIN));
         let strained = settler.settle(&start(&unstrained.state, &grips, PULL_STRAIN), &grips, budget, &mut |w| {
             progress(label1, w, budget);
@@ -349,8 +360,8 @@ fn run<S: Settle>(
     let start = State::at_rest(fabric);
     let relaxed = settler.settle(&start, &[], budget, &mut |w| progress("relax", w, budget))?;
     let extent = metrics::extent(fabric, &relaxed.state.positions).ok_or_else(|| config.too_small())?;
-    let course = Probe::new(&mut settler, fabric, &relaxed, Axis::Course, extent.width, budget, progress)?;
-    let wale = Probe::new(&mut settler, fabric, &relaxed, Axis::Wale, extent.height, budget, progress)?;
+    let course = Probe::new(&mut settler, &ruler, fabric, &relaxed, Axis::Course, extent.width, budget, progress)?;
+    let wale = Probe::new(&mut settler, &ruler, fabric, &relaxed, Axis::Wale, extent.height, budget, progress)?;
     let holds = [course.read(&ruler, fabric), wale.read(&ruler, fabric)];
     let at_rest = figures(fabric, &relaxed.state, [&holds[0], &holds[1]])?;
 
