@@ -75,12 +75,13 @@ pub(crate) enum Exec {
 
 /// What each timed pass covers (the stage counters).
 const CONTACT_FORCES: &[Stage] = &[Stage::Forces];
-/// The block pass with friction on: forces, v* and its divergence test.
-const BLOCK_FORCES: &[Stage] = &[Stage::Forces, Stage::Check];
+/// The block pass with friction on: forces and v*.
+const BLOCK_FORCES: &[Stage] = &[Stage::Forces];
 /// The block pass without friction, which moves the nodes too.
 const BLOCK_FORCES_AND_MOVE: &[Stage] = &[Stage::Forces, Stage::Move, Stage::Check];
 const FRICTION: &[Stage] = &[Stage::Friction];
-const MOVE: &[Stage] = &[Stage::Move];
+/// The move after friction, with the divergence test.
+const MOVE: &[Stage] = &[Stage::Move, Stage::Check];
 const PINS: &[Stage] = &[Stage::Pins];
 
 /// Per-block working memory, one per thread that may run blocks. Segment
