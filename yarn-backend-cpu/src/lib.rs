@@ -266,6 +266,11 @@ mod tests {
         Fabric::from_chart(&Chart::stockinette(3, 3).unwrap(), &Geometry::paper()).unwrap()
     }
 
+    /// How far apart the farthest pair of matching vectors of `a` and `b` is.
+    fn farthest(a: &[V3<f64>], b: &[V3<f64>]) -> f64 {
+        a.iter().zip(b).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max)
+    }
+
     /// A patch dropped on a floor with self-contact on: `Serial<f64>`
     /// takes a substep as the reference does to rounding and follows it
     /// closely over the drop, `Serial<f32>` and `Rayon` agree
@@ -298,7 +303,7 @@ mod tests {
         // Each substep agrees to rounding (below), but friction at a pair
         // that barely slips turns along its slip, whose direction rounding
         // decides, so the two part by about 6e-9 over the 400 substeps.
-        let worst = reference.positions.iter().zip(&serial.positions).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+        let worst = farthest(&reference.positions, &serial.positions);
         assert!(worst < 2e-8, "serial f64 strays {worst} from the reference");
         let (midway, _) = drop_on(Reference::<f64>::new(), &fabric, &params, &colliders, substeps / 5);
         fn one_substep<B: Backend<Real = f64>>(
@@ -318,7 +323,7 @@ mod tests {
             one_substep(Reference::<f64>::new(), &fabric, &params, &colliders, &midway),
             one_substep(Serial::<f64>::new(), &fabric, &params, &colliders, &midway),
         );
-        let worst = a.velocities.iter().zip(&b.velocities).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+        let worst = farthest(&a.velocities, &b.velocities);
         assert!(worst < 1e-13, "one substep from the same state: serial f64 strays {worst} from the reference");
         assert_eq!(single, parallel, "serial f32 and rayon must agree bit for bit");
         let radius = fabric.yarn_radius();
@@ -412,12 +417,9 @@ mod tests {
         let reference = flung(Reference::<f64>::new());
         assert_eq!(reference.velocities[10], V3::zeros(), "the pin stops its node");
         let reference_f32 = flung(Reference::<f32>::new());
-        let gap = |a: &State<f64>, b: &State<f64>| {
-            a.positions.iter().zip(&b.positions).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max)
-        };
-        assert!(gap(&flung(Serial::<f64>::new()), &reference) < 1e-12);
+        assert!(farthest(&flung(Serial::<f64>::new()).positions, &reference.positions) < 1e-12);
         let serial_f32 = flung(Serial::<f32>::new());
-        assert!(gap(&serial_f32, &reference_f32) < 1e-5);
+        assert!(farthest(&serial_f32.positions, &reference_f32.positions) < 1e-5);
         assert_eq!(flung(Rayon::with_threads(2).unwrap()), serial_f32);
     }
 
@@ -718,13 +720,13 @@ mod tests {
         plain.write_state(&drawn).unwrap();
         let (f, g) = (fast.forces().unwrap(), plain.forces().unwrap());
         let scale = g.iter().map(|v| v.norm()).fold(0.0, f64::max);
-        let worst = f.iter().zip(&g).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        let worst = farthest(&f, &g);
         assert!(scale > 1.0 && worst < 1e-12 * scale, "forces differ by {worst:e} of {scale}");
         fast.advance(300).unwrap();
         plain.advance(300).unwrap();
         let (a, b) = (fast.state().unwrap(), plain.state().unwrap());
-        let moved = b.positions.iter().zip(fabric.positions()).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
-        let worst = a.positions.iter().zip(&b.positions).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+        let moved = farthest(&b.positions, fabric.positions());
+        let worst = farthest(&a.positions, &b.positions);
         assert!(moved > 1e-2 && worst < 1e-9, "moved {moved}, differ by {worst:e}");
         let drawn = drawn.cast::<f32>();
         let mut reference = Reference::<f32>::new();
@@ -856,13 +858,13 @@ mod tests {
         plain.set_contacts_alive(&alive).unwrap();
         let (f, g) = (fast.forces().unwrap(), plain.forces().unwrap());
         let scale = g.iter().map(|v| v.norm()).fold(0.0, f64::max);
-        let worst = f.iter().zip(&g).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        let worst = farthest(&f, &g);
         assert!(scale > 1.0 && worst < 1e-12 * scale, "forces differ by {worst:e} of {scale}");
         fast.advance(300).unwrap();
         plain.advance(300).unwrap();
         let (a, b) = (fast.state().unwrap(), plain.state().unwrap());
-        let moved = b.positions.iter().zip(fabric.positions()).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
-        let worst = a.positions.iter().zip(&b.positions).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+        let moved = farthest(&b.positions, fabric.positions());
+        let worst = farthest(&a.positions, &b.positions);
         assert!(moved > 1e-2 && worst < 1e-9, "moved {moved}, differ by {worst:e}");
     }
 
@@ -919,8 +921,8 @@ mod tests {
         single.advance(300).unwrap();
         double.advance(300).unwrap();
         let (a, b) = (single.state().unwrap().cast::<f64>(), double.state().unwrap());
-        let worst = a.positions.iter().zip(&b.positions).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
-        let moved = b.positions.iter().zip(fabric.positions()).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
+        let worst = farthest(&a.positions, &b.positions);
+        let moved = farthest(&b.positions, fabric.positions());
         assert!(moved > 1e-2, "the patch must move for the comparison to mean anything (moved {moved})");
         assert!(worst < 1e-3 * moved.max(1.0), "f32 drifted {worst} from f64");
     }

@@ -298,9 +298,7 @@ impl<T: Real> SelfContacts<T> {
             for (end, i) in scratch.ends.iter_mut().zip(self.nodes[first + j]) {
                 end.set(m, v.get(i as usize));
             }
-            let Closest { gap, distance, s, t } = self.closest[first + j];
-            scratch.gap.set(m, gap);
-            (scratch.distance[m], scratch.s[m], scratch.t[m]) = (distance, s, t);
+            scratch.set_closest(m, &self.closest[first + j]);
             scratch.measured.push(j);
         }
         scratch.friction_impulses(reach, model.coeffs());
@@ -362,6 +360,13 @@ impl<T: Real> PairScratch<T> {
     /// The closest points of measured pair `m`.
     fn closest(&self, m: usize) -> Closest<T> {
         Closest { gap: self.gap.get(m), distance: self.distance[m], s: self.s[m], t: self.t[m] }
+    }
+
+    /// Set the closest points of measured pair `m`.
+    #[inline]
+    fn set_closest(&mut self, m: usize, &Closest { gap, distance, s, t }: &Closest<T>) {
+        self.gap.set(m, gap);
+        (self.distance[m], self.s[m], self.t[m]) = (distance, s, t);
     }
 
     /// The closest points of the measured pairs from their positions in
@@ -551,8 +556,7 @@ mod tests {
                 for (end, v) in scratch.ends.iter_mut().zip(v) {
                     end.set(k, v);
                 }
-                scratch.gap.set(k, found[m].gap);
-                (scratch.distance[k], scratch.s[k], scratch.t[k]) = (found[m].distance, found[m].s, found[m].t);
+                scratch.set_closest(k, &found[m]);
             }
             scratch.friction_impulses(reach, &c);
             for (k, &m) in scratch.measured.iter().enumerate() {
