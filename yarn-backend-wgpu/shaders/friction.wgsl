@@ -28,7 +28,7 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     var velocity = w + node_friction(i);
     velocity += self_contact_friction(i);
     velocity += collider_friction(x[i].xyz, w);
-    watch_speed(velocity);
+    watch_speed(i, velocity);
     let at = x[i].xyz + mul3(velocity, p.h);
     v_next[i] = vec4<f32>(velocity, 0.0);
     x_next[i] = vec4<f32>(at, 0.0);

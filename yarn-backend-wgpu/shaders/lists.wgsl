@@ -10,7 +10,7 @@
 //   (NONE where none), how many candidates the segment it starts has, and
 //   which of its first 32 push (`touch.wgsl`'s `segment_sums`);
 // - the position it was at when the lists were last built (the anchor), as
-//   f32 bits, x, y and z (and one row unused);
+//   f32 bits, x, y and z, then whether a pin holds the node (1) or not (0);
 // - its segment's pairs' sums on its first and its last node, written by
 //   `pairs.wgsl` and read by the node passes, as f32 bits (x, y, z and, for
 //   friction, the longest change, on the first node, then on the last);
@@ -32,6 +32,7 @@ const NEXT: u32 = 1u;
 const COUNT: u32 = 2u;
 const PUSHING: u32 = 3u;
 const ANCHOR: u32 = 4u;
+const PINNED: u32 = 7u;
 const SUMS: u32 = 8u;
 const SLOTS: u32 = 16u;
 

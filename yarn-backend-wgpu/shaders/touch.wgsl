@@ -250,12 +250,15 @@ fn self_contact_friction(i: u32) -> vec3<f32> {
     return cap(own.xyz + before.xyz, max(own.w, before.w));
 }
 
-// Where a node's velocity is final (after friction, or v* without it):
+// Where node i's velocity is final (after friction, or v* without it):
 // flag a node whose velocity passed the divergence speed, which with
 // self-contact is half a radius a substep (`Model::divergence_speed`);
-// `check.wgsl` reports it.
-fn watch_speed(velocity: vec3<f32>) {
-    if (p.flags & SELF_CONTACT) != 0u && !all(abs(velocity) <= vec3<f32>(p.max_speed)) {
+// `check.wgsl` reports it. A pinned node is not watched: its pin stops it
+// in the same substep, and a node its pin stops has not diverged (the
+// reference's rule, and the CPU's).
+fn watch_speed(i: u32, velocity: vec3<f32>) {
+    if (p.flags & SELF_CONTACT) != 0u && lists[field_at(i, PINNED)] == 0u
+        && !all(abs(velocity) <= vec3<f32>(p.max_speed)) {
         lists[SPEEDING] = 1u;
     }
 }

@@ -2,7 +2,7 @@
 // damped velocity v* in place and, without friction, the move into `out`
 // (entry point `step`); or the force alone into `out` (entry point
 // `forces`, for `Backend::compute_forces`). Each mode's file supplies
-// `total_force(i)`, `watch_speed` and `watch_move` (`touch.wgsl`'s, or
+// `total_force(i)`, `watch_speed(i, velocity)` and `watch_move` (`touch.wgsl`'s, or
 // nothing), and the bindings `p`, `x`, `v` and `out`; the colliders' push
 // comes last, as on the CPU.
 
@@ -16,7 +16,7 @@ fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     let velocity = damped_velocity(v[i].xyz, with_colliders(total_force(i), x[i].xyz));
     v[i] = vec4<f32>(velocity, 0.0);
     if (p.flags & FRICTION_ON) == 0u {
-        watch_speed(velocity);
+        watch_speed(i, velocity);
         let at = x[i].xyz + mul3(velocity, p.h);
         out[i] = vec4<f32>(at, 0.0);
         watch_move(i, at);

@@ -146,6 +146,8 @@ pub(crate) mod rows {
     pub(crate) const COUNT: usize = 2;
     #[cfg(test)]
     pub(crate) const ANCHOR: usize = 4;
+    /// 1 where a pin holds the node, else 0.
+    pub(crate) const PINNED: usize = 7;
     pub(crate) const SLOTS: usize = 16;
 
     /// Where field `row` of node i lies in lists of `nodes` nodes.
@@ -169,7 +171,17 @@ pub(crate) fn lists(model: &Model<f32>, slots: u32) -> Vec<u32> {
         lists[rows::at(n, i, rows::PREV)] = prev;
         lists[rows::at(n, i, rows::NEXT)] = next;
     }
+    lists[rows::at(n, 0, rows::PINNED)..rows::at(n, 0, rows::PINNED + 1)].copy_from_slice(&pinned(model));
     lists
+}
+
+/// The lists' row of which nodes `model`'s pins hold (`rows::PINNED`).
+pub(crate) fn pinned(model: &Model<f32>) -> Vec<u32> {
+    let mut row = vec![0; model.node_count()];
+    for &(node, _) in model.pins() {
+        row[node as usize] = 1;
+    }
+    row
 }
 
 /// Bytes of [`lists`] for `nodes` nodes and `slots` slots.

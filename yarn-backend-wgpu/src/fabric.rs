@@ -13,8 +13,8 @@ use yarn_model::self_contact::grid::{GridShape, MAX_LONG};
 use yarn_model::{BackendError, Model, Rollback, State, V3, advance_with_rollback};
 
 use crate::bindings::{
-    Buffers, Groups, Parity, chain, forces_kernel, gpu_contacts, grid, incidence, lists, lists_bytes, reseat_group,
-    rule, storage, vec4s,
+    Buffers, Groups, Parity, chain, forces_kernel, gpu_contacts, grid, incidence, lists, lists_bytes, pinned,
+    reseat_group, rows, rule, storage, vec4s,
 };
 use crate::gpu::{Gpu, read_mapped};
 use crate::layout::{
@@ -282,6 +282,10 @@ impl GpuFabric {
             .collect();
         self.buffers.pin_count = pins.len() as u32;
         self.buffers.pins = storage(&self.gpu.device, "pins", &pins);
+        if self.model.self_contact() {
+            let row = 4 * rows::at(self.model.node_count(), 0, rows::PINNED) as u64;
+            self.gpu.queue.write_buffer(&self.buffers.lists, row, bytemuck::cast_slice(&pinned(&self.model)));
+        }
         self.groups = Groups::new(&self.gpu, self.mode, &self.buffers);
         self.write_params();
     }

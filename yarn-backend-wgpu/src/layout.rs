@@ -292,6 +292,7 @@ mod tests {
             ("NEXT", rows::NEXT),
             ("COUNT", rows::COUNT),
             ("ANCHOR", rows::ANCHOR),
+            ("PINNED", rows::PINNED),
             ("SLOTS", rows::SLOTS),
         ] {
             assert!(lists.contains(&format!("const {name}: u32 = {row}u;")), "{name} differs");

@@ -130,6 +130,34 @@ fn a_node_pinned_far_away_is_watched_where_the_pin_puts_it() {
     assert_eq!(backend.state().unwrap(), serial.state().unwrap());
 }
 
+/// A pinned node flung at 100 times the divergence speed, with
+/// self-contact and friction on, is stopped by its pin in the same
+/// substep and has not diverged: the GPU runs on, to `Serial<f32>`'s state
+/// bit for bit, as the CPU does. Regression: the per-substep watch flagged
+/// the node before its pin stopped it, and the batch failed with "node 0
+/// reached speed NaN".
+#[test]
+fn a_node_its_pin_stops_has_not_diverged() {
+    let Some(gpu) = gpu() else { return };
+    let params = Params { self_contact_stiffness: 800.0, ..Params::default() };
+    let (fabric, state) = crumpled(0.0, 1.0);
+    let pin = yarn_topology::Pin { node: 10, target: fabric.positions()[10] };
+    let mut backend = Wgpu::with_gpu(gpu, Mode::Gather);
+    let mut serial = Serial::<f32>::new();
+    for b in [&mut backend as &mut dyn Backend<Real = f32>, &mut serial] {
+        place(b, &fabric, &params, &state);
+        b.set_pins(&[pin]).unwrap();
+        b.advance(5).unwrap();
+        let mut flung = b.state().unwrap();
+        flung.velocities[10].y = 100.0 * b.model().unwrap().divergence_speed() as f32;
+        b.write_state(&flung).unwrap();
+        let name = b.name();
+        b.advance(3).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+    assert_eq!(backend.state().unwrap().velocities[10], V3::zeros(), "the pin stops its node");
+    assert_eq!(backend.state().unwrap(), serial.state().unwrap());
+}
+
 /// A crush that puts more candidates near a segment than the lists hold
 /// grows them and runs the batch again, to `Serial<f32>`'s forces and
 /// trajectory bit for bit; on a device whose bindings cannot hold lists
