@@ -6,14 +6,15 @@
 // `lists` (array<u32>) holds, after a small header, rows of one word per
 // node (or per segment, which node i starts), each row a field, so that
 // neighbouring threads read and write neighbouring words:
-// - the node's record: the node before it and after it along its yarn
-//   (NONE where none), how many candidates the segment it starts has, and
-//   which of its first 32 push (`touch.wgsl`'s `segment_sums`);
+// - the node's record: whether a pin holds it (1) or not (0), the node
+//   after it along its yarn (NONE where none), how many candidates the
+//   segment it starts has, and which of its first 32 push (`pairs.wgsl`);
 // - the position it was at when the lists were last built (the anchor), as
-//   f32 bits, x, y and z, then whether a pin holds the node (1) or not (0);
-// - its segment's pairs' sums on its first and its last node, written by
-//   `pairs.wgsl` and read by the node passes, as f32 bits (x, y, z and, for
-//   friction, the longest change, on the first node, then on the last);
+//   f32 bits, x, y and z (and one row unused);
+// - the pair sums on the node, written by `pairs.wgsl` and read by the
+//   node passes, as f32 bits (x, y, z and, for friction, the longest
+//   change): of the segment it starts, then of the segment it ends; zero
+//   where it starts or ends none;
 // - `p.slots` candidate rows: the partner segments, sorted, slot k of
 //   every segment in row k.
 
@@ -27,12 +28,11 @@ const SPEEDING: u32 = 1u;
 const RECORDS: u32 = 4u;
 
 // Rows of the record, after the header.
-const PREV: u32 = 0u;
+const PINNED: u32 = 0u;
 const NEXT: u32 = 1u;
 const COUNT: u32 = 2u;
 const PUSHING: u32 = 3u;
 const ANCHOR: u32 = 4u;
-const PINNED: u32 = 7u;
 const SUMS: u32 = 8u;
 const SLOTS: u32 = 16u;
 

@@ -119,26 +119,29 @@ struct Sums {
 
 const NO_SUMS: Sums = Sums(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
 
-// Add the pair in slot k of a segment's list to the segment's `sums`: its
-// push, or with `friction` its friction change. A push marks slot k in
-// `marked` (the first 32).
-fn add_pair(sums: ptr<function, Sums>, marked: ptr<function, u32>, pair: Pair, friction: bool, k: u32) {
+// A pair's push, or with `friction` its friction change; zero where the
+// pair is surely out of reach (`apart`), as the exact test would find it.
+fn pair_values(pair: Pair, friction: bool) -> Quad {
     if apart(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1, p.reach) {
-        return;
+        return NO_QUAD;
     }
-    var values: Quad;
     if friction {
-        values = pair_friction(pair.x, pair.w);
-    } else {
-        values = pair_forces(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1);
-        let pushes = any(values.p0 != vec3<f32>(0.0)) || any(values.p1 != vec3<f32>(0.0))
-            || any(values.q0 != vec3<f32>(0.0)) || any(values.q1 != vec3<f32>(0.0));
-        if pushes && k < 32u {
-            *marked |= 1u << k;
-        }
+        return pair_friction(pair.x, pair.w);
     }
-    let first = first_share(values, pair.s_is_q);
-    let last = last_share(values, pair.s_is_q);
+    return pair_forces(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1);
+}
+
+// Whether a pair's push moves any of its nodes: friction visits only the
+// pairs that push.
+fn pushes(values: Quad) -> bool {
+    return any(values.p0 != vec3<f32>(0.0)) || any(values.p1 != vec3<f32>(0.0)) || any(values.q0 != vec3<f32>(0.0))
+        || any(values.q1 != vec3<f32>(0.0));
+}
+
+// Add a pair's values on a segment's first node (`first`) and last
+// (`last`) to the segment's `sums`, in slot order, and for friction
+// keep the longest.
+fn add_shares(sums: ptr<function, Sums>, first: vec3<f32>, last: vec3<f32>, friction: bool) {
     (*sums).first += first;
     (*sums).last += last;
     if friction {
@@ -147,78 +150,28 @@ fn add_pair(sums: ptr<function, Sums>, marked: ptr<function, u32>, pair: Pair, f
     }
 }
 
-// The first slot at or after k of a list of `count` that the pass visits
-// (`count` where none is left): the pushes visit every slot; friction only
-// those of the first 32 that `pushing` marks, and any past 32.
-fn next_slot(k: u32, count: u32, pushing: u32, friction: bool) -> u32 {
-    var at = k;
-    while friction && at < min(count, 32u) && (pushing & (1u << at)) == 0u {
-        at++;
-    }
-    return at;
-}
-
-// Segment s's pushes (`step::accumulate_forces`'s self-contact terms), or
-// with `friction` its friction changes from x and v*
-// (`step::self_contact_friction`); no sums for a node that starts no
-// segment. The pushes also mark which of the first 32 slots push, in the
-// record's last word, and friction visits only those (and any slots past
-// 32): the others would add exactly zero.
-//
-// The slots go two at a time: both pairs are loaded before either is
-// summed, so that their loads overlap. On the H200 at a million nodes this
-// took friction from 117 to 92 µs a substep (the pushes stayed at 97).
-fn segment_sums(s: u32, friction: bool) -> Sums {
-    var sums = NO_SUMS;
-    let end = segment_end(s);
-    if end == NONE {
-        return sums;
-    }
-    let count = lists[field_at(s, COUNT)];
-    let pushing = lists[field_at(s, PUSHING)];
-    var marked = 0u;
-    var k = next_slot(0u, count, pushing, friction);
-    while k < count {
-        let after = next_slot(k + 1u, count, pushing, friction);
-        let pair = pair_of(s, end, lists[slot_at(s, k)], friction);
-        // Where k is the last, its own pair again, unused.
-        let next_pair = pair_of(s, end, lists[slot_at(s, select(k, after, after < count))], friction);
-        add_pair(&sums, &marked, pair, friction, k);
-        if after >= count {
-            break;
-        }
-        add_pair(&sums, &marked, next_pair, friction, after);
-        k = next_slot(after + 1u, count, pushing, friction);
-    }
-    if !friction {
-        lists[field_at(s, PUSHING)] = marked;
-    }
-    return sums;
-}
-
-// Write segment s's sums where the node passes read them, word by word:
-// from a local array indexed in a loop, the H200 took 11–13 µs longer per
-// pass at a million nodes.
-fn store_sums(s: u32, sums: Sums) {
+// Write segment s's sums where the nodes they act on read them: the sum on
+// its first node at s, the sum on its last at `end`, word by word (from a
+// local array indexed in a loop, the H200 took 11–13 µs longer per pass at
+// a million nodes).
+fn store_sums(s: u32, end: u32, sums: Sums) {
     lists[sums_at(s, 0u)] = bitcast<u32>(sums.first.x);
     lists[sums_at(s, 1u)] = bitcast<u32>(sums.first.y);
     lists[sums_at(s, 2u)] = bitcast<u32>(sums.first.z);
     lists[sums_at(s, 3u)] = bitcast<u32>(sums.first_longest);
-    lists[sums_at(s, 4u)] = bitcast<u32>(sums.last.x);
-    lists[sums_at(s, 5u)] = bitcast<u32>(sums.last.y);
-    lists[sums_at(s, 6u)] = bitcast<u32>(sums.last.z);
-    lists[sums_at(s, 7u)] = bitcast<u32>(sums.last_longest);
+    lists[sums_at(end, 4u)] = bitcast<u32>(sums.last.x);
+    lists[sums_at(end, 5u)] = bitcast<u32>(sums.last.y);
+    lists[sums_at(end, 6u)] = bitcast<u32>(sums.last.z);
+    lists[sums_at(end, 7u)] = bitcast<u32>(sums.last_longest);
 }
 
-// Segment s's sum on its first node (`on_last` false) or its last, with
-// the longest change in w; zero where s is NONE or starts no segment.
-fn stored_sum(s: u32, on_last: bool) -> vec4<f32> {
-    if s == NONE || segment_end(s) == NONE {
-        return vec4<f32>(0.0);
-    }
-    let w = select(0u, 4u, on_last);
-    let words = vec4<u32>(lists[sums_at(s, w)], lists[sums_at(s, w + 1u)], lists[sums_at(s, w + 2u)],
-                          lists[sums_at(s, w + 3u)]);
+// Node i's sum from the segment it starts (`ended` false) or from the one
+// it ends, with the longest change in w: zero where it starts or ends none,
+// since nothing writes those words.
+fn stored_sum(i: u32, ended: bool) -> vec4<f32> {
+    let w = select(0u, 4u, ended);
+    let words = vec4<u32>(lists[sums_at(i, w)], lists[sums_at(i, w + 1u)], lists[sums_at(i, w + 2u)],
+                          lists[sums_at(i, w + 3u)]);
     return bitcast<vec4<f32>>(words);
 }
 
@@ -228,7 +181,7 @@ fn with_self_contact(f: vec3<f32>, i: u32) -> vec3<f32> {
     if (p.flags & SELF_CONTACT) == 0u {
         return f;
     }
-    return f + stored_sum(i, false).xyz + stored_sum(lists[field_at(i, PREV)], true).xyz;
+    return f + stored_sum(i, false).xyz + stored_sum(i, true).xyz;
 }
 
 // `step::cap`: `sum` cut back to the length `longest`.
@@ -246,7 +199,7 @@ fn self_contact_friction(i: u32) -> vec3<f32> {
         return vec3<f32>(0.0);
     }
     let own = stored_sum(i, false);
-    let before = stored_sum(lists[field_at(i, PREV)], true);
+    let before = stored_sum(i, true);
     return cap(own.xyz + before.xyz, max(own.w, before.w));
 }
 

@@ -139,15 +139,14 @@ impl Buffers {
 /// Rows of the candidate lists after their 4-word header (`lists.wgsl`'s
 /// `field_at`): field `row` of node i is word `4 + row × nodes + i`.
 pub(crate) mod rows {
-    pub(crate) const PREV: usize = 0;
+    /// 1 where a pin holds the node, else 0.
+    pub(crate) const PINNED: usize = 0;
     pub(crate) const NEXT: usize = 1;
     /// Only the GPU writes these; the tests read them back.
     #[cfg(test)]
     pub(crate) const COUNT: usize = 2;
     #[cfg(test)]
     pub(crate) const ANCHOR: usize = 4;
-    /// 1 where a pin holds the node, else 0.
-    pub(crate) const PINNED: usize = 7;
     pub(crate) const SLOTS: usize = 16;
 
     /// Where field `row` of node i lies in lists of `nodes` nodes.
@@ -167,9 +166,7 @@ pub(crate) fn lists(model: &Model<f32>, slots: u32) -> Vec<u32> {
     let mut lists = vec![0u32; rows::at(n, 0, rows::SLOTS + slots as usize)];
     lists[0] = 1;
     for (i, link) in model.links().iter().enumerate() {
-        let [prev, next] = link.raw();
-        lists[rows::at(n, i, rows::PREV)] = prev;
-        lists[rows::at(n, i, rows::NEXT)] = next;
+        lists[rows::at(n, i, rows::NEXT)] = link.raw()[1];
     }
     lists[rows::at(n, 0, rows::PINNED)..rows::at(n, 0, rows::PINNED + 1)].copy_from_slice(&pinned(model));
     lists

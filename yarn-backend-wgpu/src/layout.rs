@@ -288,7 +288,6 @@ mod tests {
         use crate::bindings::rows;
         let lists = shaders::LISTS;
         for (name, row) in [
-            ("PREV", rows::PREV),
             ("NEXT", rows::NEXT),
             ("COUNT", rows::COUNT),
             ("ANCHOR", rows::ANCHOR),
