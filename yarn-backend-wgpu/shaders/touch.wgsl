@@ -210,8 +210,9 @@ fn self_contact_friction(i: u32) -> vec3<f32> {
 // in the same substep, and a node its pin stops has not diverged (the
 // reference's rule, and the CPU's).
 fn watch_speed(i: u32, velocity: vec3<f32>) {
-    if (p.flags & SELF_CONTACT) != 0u && lists[field_at(i, PINNED)] == 0u
-        && !all(abs(velocity) <= vec3<f32>(p.max_speed)) {
+    // The pinned row is read only for a node past the speed.
+    if (p.flags & SELF_CONTACT) != 0u && !all(abs(velocity) <= vec3<f32>(p.max_speed))
+        && lists[field_at(i, PINNED)] == 0u {
         lists[SPEEDING] = 1u;
     }
 }
