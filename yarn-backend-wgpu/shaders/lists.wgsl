@@ -46,9 +46,10 @@ fn anchor_at(i: u32, c: u32) -> u32 {
     return field_at(i, ANCHOR + c);
 }
 
-// Word w of segment s's sums (0–3 on its first node, 4–7 on its last).
-fn sums_at(s: u32, w: u32) -> u32 {
-    return field_at(s, SUMS + w);
+// Word w of node i's pair sums (0–3 from the segment it starts, 4–7 from
+// the one it ends).
+fn sums_at(i: u32, w: u32) -> u32 {
+    return field_at(i, SUMS + w);
 }
 
 fn slot_at(s: u32, k: u32) -> u32 {
