@@ -543,3 +543,45 @@ fn cli_pareto_reports_every_configuration_and_marks_one_recommended() {
     assert_eq!(std::fs::read_to_string(dir.join("pareto.csv")).unwrap().lines().count(), 25);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// How the free 4x4 patch of the default fabric moves under the damped
+/// dynamics with friction, as the gate's dynamic path relaxes it: for each
+/// scene, every 100,000 of 1,000,000 substeps on `Rayon`, the farthest any
+/// node moved in the last 25,000 (in yarn radii), how far the centroid
+/// moved in them, the mean velocity |Σv|/n (zero for a free patch whose
+/// forces are equal and opposite) and the largest speed, with the
+/// certificate's coast v_max/β in yarn radii. About a minute:
+/// `cargo test --release -p yarn-gate --test gate -- --ignored --nocapture measure_the_free_patch_drift`.
+#[test]
+#[ignore = "a measurement, printed"]
+fn measure_the_free_patch_drift() {
+    const WINDOW: u64 = 25_000;
+    let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
+    let r = fabric.yarn_radius();
+    for (self_contact_stiffness, friction) in [(1600.0, 0.3), (1600.0, 0.0), (1600.0, 1.0), (0.0, 0.3)] {
+        println!("k_sc = {self_contact_stiffness}, μ = {friction}");
+        let params = Params { self_contact_stiffness, friction, ..Params::default() };
+        let mut backend = yarn_backend_cpu::Rayon::with_threads(2).unwrap();
+        backend.load(&fabric, &params).unwrap();
+        let mut last = backend.state().unwrap().cast::<f64>();
+        for window in 1..=40 {
+            backend.advance(WINDOW).unwrap();
+            let state = backend.state().unwrap().cast::<f64>();
+            if window % 4 == 0 {
+                let n = state.positions.len() as f64;
+                let moves: Vec<_> = state.positions.iter().zip(&last.positions).map(|(x, before)| x - before).collect();
+                let farthest = moves.iter().map(|d| d.norm()).fold(0.0, f64::max) / r;
+                let centroid = moves.iter().sum::<yarn_model::V3<f64>>().norm() / n / r;
+                let mean_velocity = state.velocities.iter().sum::<yarn_model::V3<f64>>().norm() / n;
+                let fastest = state.max_speed();
+                println!(
+                    "  {:>9} substeps: farthest {farthest:.3} r, centroid {centroid:.1e} r, mean velocity \
+                     {mean_velocity:.1e}, largest speed {fastest:.1e} (coast {:.1e} r)",
+                    window * WINDOW,
+                    fastest / params.damping / r
+                );
+            }
+            last = state;
+        }
+    }
+}
