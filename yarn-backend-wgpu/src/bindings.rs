@@ -174,11 +174,7 @@ pub(crate) fn lists(model: &Model<f32>, slots: u32) -> Vec<u32> {
 
 /// The lists' row of which nodes `model`'s pins hold (`rows::PINNED`).
 pub(crate) fn pinned(model: &Model<f32>) -> Vec<u32> {
-    let mut row = vec![0; model.node_count()];
-    for &(node, _) in model.pins() {
-        row[node as usize] = 1;
-    }
-    row
+    model.pinned_nodes().into_iter().map(u32::from).collect()
 }
 
 /// Bytes of [`lists`] for `nodes` nodes and `slots` slots.

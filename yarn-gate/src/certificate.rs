@@ -136,11 +136,7 @@ impl Certificate {
 
 /// Which nodes are free (not pinned).
 fn free_nodes(model: &Model<f64>) -> Vec<bool> {
-    let mut free = vec![true; model.node_count()];
-    for &(node, _) in model.pins() {
-        free[node as usize] = false;
-    }
-    free
+    model.pinned_nodes().into_iter().map(|pinned| !pinned).collect()
 }
 
 fn zero_pinned(v: &mut [V3<f64>], free: &[bool]) {

@@ -336,6 +336,13 @@ impl<T: Real> Model<T> {
         &self.pins
     }
 
+    /// Per node, whether a pin holds it.
+    pub fn pinned_nodes(&self) -> Vec<bool> {
+        let mut pinned = vec![false; self.node_count()];
+        self.pins.iter().for_each(|&(node, _)| pinned[node as usize] = true);
+        pinned
+    }
+
     /// The parameters in this model's precision, with the derived factors.
     pub fn coeffs(&self) -> &Coefficients<T> {
         &self.coeffs

@@ -560,7 +560,7 @@ impl LinearStiffness {
     /// K of `model`, its pinned nodes held; `None` when K is not positive
     /// definite or every node is pinned.
     pub fn new(model: &Model<f64>) -> Option<Self> {
-        Stiffness::new(model, &pinned(model), Coupling::PerCoordinate).map(Self)
+        Stiffness::new(model, &model.pinned_nodes(), Coupling::PerCoordinate).map(Self)
     }
 
     /// K⁻¹ `forces`, zero at pinned nodes.
@@ -572,12 +572,6 @@ impl LinearStiffness {
         k.free.iter().zip(free).for_each(|(&node, u)| x[node] = u);
         x
     }
-}
-
-fn pinned(model: &Model<f64>) -> Vec<bool> {
-    let mut pinned = vec![false; model.node_count()];
-    model.pins().iter().for_each(|&(node, _)| pinned[node as usize] = true);
-    pinned
 }
 
 /// The largest angle a joint treated as straight may have:
@@ -980,7 +974,7 @@ pub fn solve(model: &Model<f64>, state: &mut State<f64>, options: &StaticOptions
         state.positions[node as usize] = target;
     }
     state.velocities.iter_mut().for_each(|v| *v = V3::zeros());
-    let pinned = pinned(model);
+    let pinned = model.pinned_nodes();
     let mut forces = Vec::new();
     let touch = forces_and_touch(model, &state.positions, &mut forces);
     let mut pull = forces.clone();
@@ -1506,7 +1500,7 @@ mod tests {
 
     /// K, as a dense matrix from the same entries, and the free nodes.
     fn dense(model: &Model<f64>, coupling: Coupling<'_>) -> (Vec<usize>, Vec<Vec<f64>>) {
-        let pinned = pinned(model);
+        let pinned = model.pinned_nodes();
         let free: Vec<usize> = (0..model.node_count()).filter(|&i| !pinned[i]).collect();
         let mut slot = vec![None; model.node_count()];
         free.iter().enumerate().for_each(|(k, &node)| slot[node] = Some(k));
@@ -1547,7 +1541,7 @@ mod tests {
     #[test]
     fn the_change_of_variables_whitens_k() {
         let (fabric, model) = hung(3, 3);
-        let pinned = pinned(&model);
+        let pinned = model.pinned_nodes();
         let rest = State::at_rest(&fabric).positions;
         let moved: Vec<V3<f64>> =
             rest.iter().enumerate().map(|(i, p)| p + V3::new(0.3 * (i as f64).sin(), 0.0, 0.2)).collect();
