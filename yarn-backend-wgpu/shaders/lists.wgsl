@@ -12,9 +12,9 @@
 // - the position it was at when the lists were last built (the anchor), as
 //   f32 bits, x, y and z (and one row unused);
 // - the pair sums on the node, written by `pairs.wgsl` and read by the
-//   node passes, as f32 bits (x, y, z and, for friction, the longest
-//   change): of the segment it starts, then of the segment it ends; zero
-//   where it starts or ends none;
+//   node passes, as f32 bits (x, y, z, then how many pairs push, which
+//   only the push pass writes): of the segment it starts, then of the
+//   segment it ends; zero where it starts or ends none;
 // - `p.slots` candidate rows: the partner segments, sorted, slot k of
 //   every segment in row k.
 

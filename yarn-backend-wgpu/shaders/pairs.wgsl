@@ -70,17 +70,21 @@ fn owner_of(visit: u32) -> u32 {
 }
 
 // Add the push of the pair in slot k of a segment's list to the segment's
-// `sums`, and mark slot k in `marked` (the first 32) if it pushes.
+// `sums`, and if it pushes count it and mark slot k in `marked` (the first
+// 32).
 fn add_push(sums: ptr<function, Sums>, marked: ptr<function, u32>, pair: Pair, k: u32) {
     let values = pair_values(pair, false);
-    if pushes(values) && k < 32u {
-        *marked |= 1u << k;
+    if pushes(values) {
+        (*sums).pushing += 1.0;
+        if k < 32u {
+            *marked |= 1u << k;
+        }
     }
-    add_shares(sums, first_share(values, pair.s_is_q), last_share(values, pair.s_is_q), false);
+    add_shares(sums, first_share(values, pair.s_is_q), last_share(values, pair.s_is_q));
 }
 
-// Segment s's pushes, and which of its first 32 slots push, in the
-// record's last word.
+// Segment s's pushes and how many pairs push, and which of its first 32
+// slots push, in the record's last word.
 fn segment_pushes(s: u32, end: u32) -> Sums {
     var sums = NO_SUMS;
     var marked = 0u;
@@ -152,12 +156,12 @@ fn shared_friction(group: vec3<u32>, local: u32, groups: vec3<u32>) {
         }
         workgroupBarrier();
         for (var at = max(own_start, round); at < min(own_end, round + WORKGROUP); at++) {
-            add_shares(&sums, firsts[at - round], lasts[at - round], true);
+            add_shares(&sums, firsts[at - round], lasts[at - round]);
         }
         workgroupBarrier();
     }
     if end != NONE {
-        store_sums(s, end, sums);
+        store_sums(s, end, sums, false);
     }
 }
 
@@ -168,7 +172,7 @@ fn forces(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id)
     if s < p.nodes {
         let end = segment_end(s);
         if end != NONE {
-            store_sums(s, end, segment_pushes(s, end));
+            store_sums(s, end, segment_pushes(s, end), true);
         }
     }
 }

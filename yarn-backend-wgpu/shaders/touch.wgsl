@@ -9,8 +9,9 @@
 // computed from its lower-numbered segment, so both segments see the same
 // numbers; a node takes the sum of the segment it starts, then that of the
 // segment it ends, each over the partners in order: the order of
-// `Serial<f32>` (yarn-backend-cpu's `fabric/touching.rs`). The friction
-// changes' sum at a node is capped by the longest of them.
+// `Serial<f32>` (yarn-backend-cpu's `fabric/touching.rs`). Each pair's
+// friction impulse is shared among the most pairs that push any of its
+// nodes (`step::pair_sharing`), counted by the push pass.
 
 // A value on each of a pair's four nodes: p0, p1, q0, q1.
 struct Quad {
@@ -47,9 +48,9 @@ fn pair_forces(p0: vec3<f32>, p1: vec3<f32>, q0: vec3<f32>, q1: vec3<f32>) -> Qu
     return Quad(push - p_share, p_share, q_share - push, -q_share);
 }
 
-// `step::self_contact_friction` from x and v* of the pair's four nodes,
-// zero where it returns `None`.
-fn pair_friction(x: Quad, w: Quad) -> Quad {
+// `step::self_contact_friction` from x and v* of the pair's four nodes and
+// its `sharing`, zero where it returns `None`.
+fn pair_friction(x: Quad, w: Quad, sharing: f32) -> Quad {
     let c = closest_gap(x.p0, x.p1, x.q0, x.q1);
     let d = norm(c.gap);
     if !(d < p.reach && d > 0.0) {
@@ -71,30 +72,34 @@ fn pair_friction(x: Quad, w: Quad) -> Quad {
         + mul(shares.w, shares.w);
     let cut = mul(mul(mul(p.friction, p.self_impulse), push_depth(p.reach - d)), inverse_mass);
     let retention = max(1.0 - div_rounded(cut, slip), 0.0);
-    let j = mul3(slip_velocity, div_rounded(retention - 1.0, inverse_mass));
+    let j = mul3(slip_velocity, div_rounded(retention - 1.0, mul(inverse_mass, sharing)));
     return Quad(-mul3(j, shares.x), -mul3(j, shares.y), mul3(j, shares.z), mul3(j, shares.w));
 }
 
 // The pair of segment s (from `s` to `end`) and its partner j, from the
-// lower-numbered of the two: positions, and with `with_velocity` v*.
+// lower-numbered of the two: positions, and for friction v* and its
+// sharing.
 struct Pair {
     x: Quad,
     w: Quad,
+    sharing: f32,
     // Whether s is the pair's q (the higher-numbered).
     s_is_q: bool,
 }
 
-fn pair_of(s: u32, end: u32, j: u32, with_velocity: bool) -> Pair {
+fn pair_of(s: u32, end: u32, j: u32, friction: bool) -> Pair {
     let j_end = segment_end(j);
     let own = Quad(x[s].xyz, x[end].xyz, x[j].xyz, x[j_end].xyz);
     var w = NO_QUAD;
-    if with_velocity {
+    var sharing = 1.0;
+    if friction {
         w = Quad(v_star(s), v_star(end), v_star(j), v_star(j_end));
+        sharing = max(max(max(max(pushing_at(s), pushing_at(end)), pushing_at(j)), pushing_at(j_end)), 1.0);
     }
     if s < j {
-        return Pair(own, w, false);
+        return Pair(own, w, sharing, false);
     }
-    return Pair(Quad(own.q0, own.q1, own.p0, own.p1), Quad(w.q0, w.q1, w.p0, w.p1), true);
+    return Pair(Quad(own.q0, own.q1, own.p0, own.p1), Quad(w.q0, w.q1, w.p0, w.p1), sharing, true);
 }
 
 // A pair's values on segment s's first node and its last. Each is kept
@@ -109,15 +114,14 @@ fn last_share(q: Quad, s_is_q: bool) -> vec3<f32> {
 }
 
 // A segment's sums over its candidates, in order, on its first node and on
-// its last, and for friction the longest change on each.
+// its last, and for the pushes how many of them push.
 struct Sums {
     first: vec3<f32>,
-    first_longest: f32,
     last: vec3<f32>,
-    last_longest: f32,
+    pushing: f32,
 }
 
-const NO_SUMS: Sums = Sums(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
+const NO_SUMS: Sums = Sums(vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
 
 // A pair's push, or with `friction` its friction change; zero where the
 // pair is surely out of reach (`apart`), as the exact test would find it.
@@ -126,7 +130,7 @@ fn pair_values(pair: Pair, friction: bool) -> Quad {
         return NO_QUAD;
     }
     if friction {
-        return pair_friction(pair.x, pair.w);
+        return pair_friction(pair.x, pair.w, pair.sharing);
     }
     return pair_forces(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1);
 }
@@ -139,40 +143,44 @@ fn pushes(values: Quad) -> bool {
 }
 
 // Add a pair's values on a segment's first node (`first`) and last
-// (`last`) to the segment's `sums`, in slot order, and for friction
-// keep the longest.
-fn add_shares(sums: ptr<function, Sums>, first: vec3<f32>, last: vec3<f32>, friction: bool) {
+// (`last`) to the segment's `sums`, in slot order.
+fn add_shares(sums: ptr<function, Sums>, first: vec3<f32>, last: vec3<f32>) {
     (*sums).first += first;
     (*sums).last += last;
-    if friction {
-        (*sums).first_longest = max((*sums).first_longest, norm(first));
-        (*sums).last_longest = max((*sums).last_longest, norm(last));
-    }
 }
 
 // Write segment s's sums where the nodes they act on read them: the sum on
 // its first node at s, the sum on its last at `end`, word by word (from a
 // local array indexed in a loop, the H200 took 11–13 µs longer per pass at
-// a million nodes).
-fn store_sums(s: u32, end: u32, sums: Sums) {
+// a million nodes); with `counted` (the pushes), the count of pairs
+// pushing at both, which friction's pass then reads (`pushing_at`) and
+// leaves.
+fn store_sums(s: u32, end: u32, sums: Sums, counted: bool) {
     lists[sums_at(s, 0u)] = bitcast<u32>(sums.first.x);
     lists[sums_at(s, 1u)] = bitcast<u32>(sums.first.y);
     lists[sums_at(s, 2u)] = bitcast<u32>(sums.first.z);
-    lists[sums_at(s, 3u)] = bitcast<u32>(sums.first_longest);
     lists[sums_at(end, 4u)] = bitcast<u32>(sums.last.x);
     lists[sums_at(end, 5u)] = bitcast<u32>(sums.last.y);
     lists[sums_at(end, 6u)] = bitcast<u32>(sums.last.z);
-    lists[sums_at(end, 7u)] = bitcast<u32>(sums.last_longest);
+    if counted {
+        lists[sums_at(s, 3u)] = bitcast<u32>(sums.pushing);
+        lists[sums_at(end, 7u)] = bitcast<u32>(sums.pushing);
+    }
 }
 
 // Node i's sum from the segment it starts (`ended` false) or from the one
-// it ends, with the longest change in w: zero where it starts or ends none,
-// since nothing writes those words.
-fn stored_sum(i: u32, ended: bool) -> vec4<f32> {
+// it ends: zero where it starts or ends none, since nothing writes those
+// words.
+fn stored_sum(i: u32, ended: bool) -> vec3<f32> {
     let w = select(0u, 4u, ended);
-    let words = vec4<u32>(lists[sums_at(i, w)], lists[sums_at(i, w + 1u)], lists[sums_at(i, w + 2u)],
-                          lists[sums_at(i, w + 3u)]);
-    return bitcast<vec4<f32>>(words);
+    let words = vec3<u32>(lists[sums_at(i, w)], lists[sums_at(i, w + 1u)], lists[sums_at(i, w + 2u)]);
+    return bitcast<vec3<f32>>(words);
+}
+
+// How many pairs push node i: those of the segment it starts and of the one
+// it ends, as the push pass counted them (`step::pushing_pairs`).
+fn pushing_at(i: u32) -> f32 {
+    return bitcast<f32>(lists[sums_at(i, 3u)]) + bitcast<f32>(lists[sums_at(i, 7u)]);
 }
 
 // Node i's self-contact force added to `f`: the sum of the segment it
@@ -181,26 +189,17 @@ fn with_self_contact(f: vec3<f32>, i: u32) -> vec3<f32> {
     if (p.flags & SELF_CONTACT) == 0u {
         return f;
     }
-    return f + stored_sum(i, false).xyz + stored_sum(i, true).xyz;
-}
-
-// `step::cap`: `sum` cut back to the length `longest`.
-fn cap(sum: vec3<f32>, longest: f32) -> vec3<f32> {
-    let length = norm(sum);
-    return select(sum, mul3(sum, div_rounded(longest, select(1.0, length, length > 0.0))), length > longest);
+    return f + stored_sum(i, false) + stored_sum(i, true);
 }
 
 // Node i's self-contact friction change: the changes over the segment it
 // starts and the one it ends (`pairs.wgsl`'s `friction` summed them),
-// summed and capped to the longest; zero with self-contact or friction
-// off.
+// added; zero with self-contact or friction off.
 fn self_contact_friction(i: u32) -> vec3<f32> {
     if (p.flags & SELF_CONTACT) == 0u || p.friction <= 0.0 {
         return vec3<f32>(0.0);
     }
-    let own = stored_sum(i, false);
-    let before = stored_sum(i, true);
-    return cap(own.xyz + before.xyz, max(own.w, before.w));
+    return stored_sum(i, false) + stored_sum(i, true);
 }
 
 // Where node i's velocity is final (after friction, or v* without it):

@@ -74,11 +74,10 @@ pub struct Scratch<T: Real> {
     /// (SPEC §4 step 3).
     pub friction: Vec<V3<T>>,
     /// Per node: the sum of its self-contacts' friction corrections, in
-    /// pair order ([`self_contact_friction`]), and the longest one's
-    /// length, for [`cap`].
+    /// pair order ([`self_contact_friction`]).
     pub self_friction: Vec<V3<T>>,
-    /// See `self_friction`.
-    pub self_longest: Vec<T>,
+    /// Per node: how many self-contact pairs push it ([`pushing_pairs`]).
+    pub self_pushing: Vec<u32>,
     /// The self-contact candidate list, kept between substeps.
     pub candidates: Candidates<T>,
 }
@@ -254,17 +253,25 @@ pub fn friction_change<T: Real>(
 /// (2 for two nodes, as a persistent contact has). Coulomb's limit
 /// |j| ≤ μ h N, with N = k_sc g(2r − d) the pair's push
 /// ([`crate::terms::push_depth`]), lets it cut the slip by at most
-/// μ h N W, never past zero; each node then gets its share of
-/// j. Summed at a node, the changes are capped by [`capped_sum`], so many
-/// contacts at one node cannot reverse its slip.
+/// μ h N W, never past zero.
+///
+/// The impulse is then shared: divided by `sharing`, the most pushing
+/// pairs at any of the pair's four nodes ([`pushing_pairs`]), and each
+/// node gets its share of it. So the changes of every pair stay equal and
+/// opposite, and a node's sum over its pairs is never longer than its
+/// longest pair's undivided change: many contacts slipping the same way at
+/// one node cannot reverse its slip, and momentum is kept. (A cap on each
+/// node's sum, the earlier bound, gave a node less than its partners got
+/// back, and a free patch drifted.)
 #[inline]
 pub fn self_contact_friction<T: Real>(
     x: [&V3<T>; 4],
     v: [&V3<T>; 4],
     reach: T,
+    sharing: T,
     c: &Coefficients<T>,
 ) -> Option<[V3<T>; 4]> {
-    self_contact_friction_at(&Closest::of(x[0], x[1], x[2], x[3]), v, reach, c)
+    self_contact_friction_at(&Closest::of(x[0], x[1], x[2], x[3]), v, reach, sharing, c)
 }
 
 /// [`self_contact_friction`] from the pair's closest points at x.
@@ -273,6 +280,7 @@ pub fn self_contact_friction_at<T: Real>(
     closest: &Closest<T>,
     v: [&V3<T>; 4],
     reach: T,
+    sharing: T,
     c: &Coefficients<T>,
 ) -> Option<[V3<T>; 4]> {
     let Closest { gap, distance: d, s, t } = *closest;
@@ -291,30 +299,33 @@ pub fn self_contact_friction_at<T: Real>(
     let inverse_mass = shares.iter().fold(T::zero(), |sum, &share| sum + share * share);
     let cut = c.friction * c.self_contact_impulse * push_depth(reach - d, reach) * inverse_mass;
     let retention = (one - cut / slip).max(T::zero());
-    let j = wt * ((retention - one) / inverse_mass);
+    let j = wt * ((retention - one) / (inverse_mass * sharing));
     Some([-(j * shares[0]), -(j * shares[1]), j * shares[2], j * shares[3]])
 }
 
-/// The sum of the friction changes `changes` at one node, in order, cut
-/// back to the length of the longest of them. Each change alone never
-/// reverses its contact's slip, but several contacts slipping the same way
-/// would add up to more than any one of them wants; the cap keeps the node
-/// to what its strongest contact asks. It is continuous in every change,
-/// so a contact that barely touches or barely slips moves the result
-/// barely.
-#[inline]
-pub fn capped_sum<T: Real>(changes: impl IntoIterator<Item = V3<T>>) -> V3<T> {
-    let (sum, longest) =
-        changes.into_iter().fold((V3::zeros(), T::zero()), |(sum, longest), dv| (sum + dv, longest.max(dv.norm())));
-    cap(sum, longest)
+/// Per node, how many of the self-contact pairs `pairs` (segments by their
+/// first nodes) push it at `x`: those within reach, counted on each of
+/// their four nodes, into `pushing`.
+pub fn pushing_pairs<T: Real>(model: &Model<T>, x: &[V3<T>], pairs: &[[u32; 2]], pushing: &mut Vec<u32>) {
+    let reach = T::of(2.0 * model.contact_rule().radius());
+    pushing.clear();
+    pushing.resize(x.len(), 0);
+    for &[a, b] in pairs {
+        let ends = [a as usize, segment_end(model, a as usize), b as usize, segment_end(model, b as usize)];
+        if Closest::of(&x[ends[0]], &x[ends[1]], &x[ends[2]], &x[ends[3]]).within(reach) {
+            for i in ends {
+                pushing[i] += 1;
+            }
+        }
+    }
 }
 
-/// [`capped_sum`] from the sum of the changes and the longest one's
-/// length, for callers that accumulate both as they go.
+/// The `sharing` of [`self_contact_friction`] for a pair whose four nodes
+/// are pushed by `pushing` pairs each ([`pushing_pairs`]): the most of
+/// them, and at least 1.
 #[inline]
-pub fn cap<T: Real>(sum: V3<T>, longest: T) -> V3<T> {
-    let length = sum.norm();
-    if length > longest { sum * (longest / length) } else { sum }
+pub fn pair_sharing<T: Real>(pushing: [u32; 4]) -> T {
+    T::of(f64::from(pushing.into_iter().fold(1, u32::max)))
 }
 
 /// The friction change of every collider at a node at `x` with velocity
@@ -329,7 +340,8 @@ pub fn collider_friction<T: Real>(surfaces: &[Surface<T>], x: &V3<T>, v: &V3<T>,
 ///    pairs of the candidate list in `scratch`, refreshed first;
 /// 2. v* = (v + hF/m) / (1 + βh);
 /// 3. Jacobi friction: every compressed alive contact's correction, every
-///    self-contact's ([`self_contact_friction`], capped per node) and
+///    self-contact's ([`self_contact_friction`], shared among the pairs
+///    at its nodes) and
 ///    every collider's, computed from v* and x, then applied in that
 ///    order;
 /// 4. x' = x + h v**;
@@ -354,8 +366,6 @@ pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Sc
         scratch.friction.resize(nodes, V3::zeros());
         scratch.self_friction.clear();
         scratch.self_friction.resize(nodes, V3::zeros());
-        scratch.self_longest.clear();
-        scratch.self_longest.resize(nodes, T::zero());
         if c.friction > T::zero() {
             for (k, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
                 let (a, b) = (k.a as usize, k.b as usize);
@@ -366,12 +376,13 @@ pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Sc
                 }
             }
             let reach = T::of(2.0 * model.contact_rule().radius());
+            pushing_pairs(model, x, pairs, &mut scratch.self_pushing);
             for &[a, b] in pairs {
                 let ends = [a as usize, segment_end(model, a as usize), b as usize, segment_end(model, b as usize)];
-                if let Some(dv) = self_contact_friction(ends.map(|i| &x[i]), ends.map(|i| &v[i]), reach, c) {
+                let sharing = pair_sharing(ends.map(|i| scratch.self_pushing[i]));
+                if let Some(dv) = self_contact_friction(ends.map(|i| &x[i]), ends.map(|i| &v[i]), reach, sharing, c) {
                     for (i, dv) in ends.into_iter().zip(dv) {
                         scratch.self_friction[i] += dv;
-                        scratch.self_longest[i] = scratch.self_longest[i].max(dv.norm());
                     }
                 }
             }
@@ -380,7 +391,7 @@ pub fn substep<T: Real>(model: &Model<T>, state: &mut State<T>, scratch: &mut Sc
         for (i, v) in v.iter_mut().enumerate() {
             let v_star = *v;
             *v += scratch.friction[i];
-            *v += cap(scratch.self_friction[i], scratch.self_longest[i]);
+            *v += scratch.self_friction[i];
             if !surfaces.is_empty() {
                 *v += collider_friction(surfaces, &x[i], &v_star, radius, c.collider_impulse);
             }
@@ -847,7 +858,7 @@ mod tests {
             let at = |v: &[V3<f64>; 4]| (v[2] * (1.0 - t) + v[3] * t) - (v[0] * (1.0 - s) + v[1] * s);
             let tangential = |w: V3<f64>| w - n * w.dot(&n);
             let before = tangential(at(&v));
-            let Some(dv) = self_contact_friction(x.each_ref(), v.each_ref(), reach, &c) else {
+            let Some(dv) = self_contact_friction(x.each_ref(), v.each_ref(), reach, 1.0, &c) else {
                 prop_assert!(before.norm() == 0.0, "no friction on a pair within reach");
                 return Ok(());
             };
@@ -864,19 +875,75 @@ mod tests {
         }
     }
 
-    /// The sum at a node is cut back to its longest change: one change
-    /// passes as it is, changes the same way add up to no more than the
-    /// longest, and opposite ones still cancel.
+    /// Two parallel yarns 1.5 apart (reach 1.8), one with nodes a unit
+    /// apart and one 0.6 apart, sliding past each other along their length:
+    /// most nodes are pushed by three pairs or more, all slipping the same
+    /// way, and the two sides' nodes by different counts. Self-contact friction keeps the patch's
+    /// momentum (gravity off, so Σv only decays by the damping factor),
+    /// and no node's change is longer than the longest undivided change
+    /// any of its pairs asks, so many pairs do not add up past one.
     #[test]
-    fn capped_sum_keeps_a_node_to_its_strongest_contact() {
-        let a = V3::new(0.3, -0.4, 0.0);
-        assert_eq!(capped_sum([a]), a);
-        assert!((capped_sum([a, a, a]) - a).norm() < 1e-15);
-        assert_eq!(capped_sum([a, -a]), V3::zeros());
-        let b = V3::new(0.0, 0.0, 1.0);
-        let sum: V3<f64> = capped_sum([a, b]);
-        assert!((sum.norm() - 1.0).abs() < 1e-15 && sum.dot(&(a + b)) > 0.0, "{sum:?}");
-        assert_eq!(capped_sum(std::iter::empty::<V3<f64>>()), V3::zeros());
+    fn self_contact_friction_keeps_momentum_where_many_pairs_share_a_node() {
+        let n = 7u32;
+        let positions: Vec<_> = (0..2 * n)
+            .map(|i| {
+                if i < n {
+                    yarn_topology::Vec3::new(f64::from(i), 0.0, 0.0)
+                } else {
+                    yarn_topology::Vec3::new(0.6 * f64::from(i - n) + 1.2, 1.5, 0.0)
+                }
+            })
+            .collect();
+        let fabric = Fabric::from_parts(FabricParts {
+            positions,
+            yarns: vec![yarn_topology::YarnSpan::open(0..n), yarn_topology::YarnSpan::open(n..2 * n)],
+            yarn_radius: Some(0.9),
+            ..FabricParts::default()
+        })
+        .unwrap();
+        let params = Params { gravity: 0.0, friction: 1.0, self_contact_stiffness: 800.0, ..Params::default() };
+        let model = Model::<f64>::new(&fabric, &params).unwrap();
+        let mut state = State::<f64>::at_rest(&fabric);
+        for (i, v) in state.velocities.iter_mut().enumerate() {
+            let along = if i < n as usize { 0.02 } else { -0.03 };
+            *v = V3::new(along, 0.001 * i as f64, -0.002 * (i % 3) as f64);
+        }
+        let c = model.coeffs();
+        let momentum = |v: &[V3<f64>]| v.iter().sum::<V3<f64>>();
+        let before = momentum(&state.velocities);
+        // Each node's longest undivided change, from v* as the substep sees it.
+        let reach = 2.0 * model.contact_rule().radius();
+        let pairs = touching(&model, &state.positions);
+        let mut pushing = Vec::new();
+        pushing_pairs(&model, &state.positions, &pairs, &mut pushing);
+        assert!(pushing.iter().filter(|&&k| k >= 3).count() >= 8, "{pushing:?}");
+        let mut forces = Vec::new();
+        accumulate_forces(&model, &state.positions, &mut forces);
+        let v_star: Vec<_> =
+            state.velocities.iter().zip(&forces).map(|(v, f)| (v + f * c.h_over_m) * c.damping_factor).collect();
+        let mut longest = vec![0.0f64; state.len()];
+        for &[a, b] in &pairs {
+            let ends = [a as usize, segment_end(&model, a as usize), b as usize, segment_end(&model, b as usize)];
+            let x = ends.map(|i| &state.positions[i]);
+            if let Some(dv) = self_contact_friction(x, ends.map(|i| &v_star[i]), reach, 1.0, c) {
+                for (i, dv) in ends.into_iter().zip(dv) {
+                    longest[i] = longest[i].max(dv.norm());
+                }
+            }
+        }
+        let mut scratch = Scratch::default();
+        substep(&model, &mut state, &mut scratch);
+        let after = momentum(&state.velocities);
+        assert!(
+            (after - before * c.damping_factor).norm() < 1e-12,
+            "momentum {before:?} -> {after:?}, off by {:e}",
+            (after - before * c.damping_factor).norm()
+        );
+        let moved = scratch.self_friction.iter().filter(|dv| dv.norm() > 0.0).count();
+        assert!(moved >= 12, "friction changed {moved} nodes");
+        for (i, dv) in scratch.self_friction.iter().enumerate() {
+            assert!(dv.norm() <= longest[i] * (1.0 + 1e-12), "node {i}: {} past {}", dv.norm(), longest[i]);
+        }
     }
 
     #[test]

@@ -27,7 +27,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use yarn_model::self_contact::PairSearch;
-use yarn_model::step::{cap, segment_end};
+use yarn_model::step::{pair_sharing, segment_end};
 use yarn_model::terms::{Closest, closest_gap, push_depth, self_contact_push};
 use yarn_model::{Coefficients, Model, Real, V3};
 
@@ -75,18 +75,17 @@ pub(crate) struct SelfContacts<T> {
 }
 
 /// A segment's sums over its pushing pairs, in partner order, on its first
-/// node and on its last, with the longest change on each (friction).
+/// node and on its last, and how many pairs push it.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct SegmentSums<T> {
     first: V3<T>,
-    first_longest: T,
     last: V3<T>,
-    last_longest: T,
+    pushing: u32,
 }
 
 impl<T: Real> Default for SegmentSums<T> {
     fn default() -> Self {
-        Self { first: V3::zeros(), first_longest: T::zero(), last: V3::zeros(), last_longest: T::zero() }
+        Self { first: V3::zeros(), last: V3::zeros(), pushing: 0 }
     }
 }
 
@@ -190,17 +189,13 @@ impl<T: Real> SelfContacts<T> {
 
     /// Segment `s`'s sums over its pushing pairs, from `values` (the force
     /// or friction slots), on its first node and its last, in partner
-    /// order: the twin of `pairs.wgsl`.
-    fn segment_sums(&self, s: usize, values: &Field<T>, friction: bool) -> SegmentSums<T> {
+    /// order, and their count: the twin of `pairs.wgsl`.
+    fn segment_sums(&self, s: usize, values: &Field<T>) -> SegmentSums<T> {
         let mut sums = SegmentSums::default();
         for &slot in self.entries_of(Some(s as u32)).iter().filter(|&&slot| self.active[slot as usize / 4]) {
-            let (first, last) = (values.get(slot as usize), values.get(slot as usize + 1));
-            sums.first += first;
-            sums.last += last;
-            if friction {
-                sums.first_longest = sums.first_longest.max(first.norm());
-                sums.last_longest = sums.last_longest.max(last.norm());
-            }
+            sums.first += values.get(slot as usize);
+            sums.last += values.get(slot as usize + 1);
+            sums.pushing += 1;
         }
         sums
     }
@@ -210,8 +205,15 @@ impl<T: Real> SelfContacts<T> {
     pub(crate) fn sums_block(&self, block: usize, friction: bool, out: &mut [SegmentSums<T>]) {
         let values = if friction { &self.friction } else { &self.force };
         for (k, sums) in out.iter_mut().enumerate() {
-            *sums = self.segment_sums(block * BLOCK + k, values, friction);
+            *sums = self.segment_sums(block * BLOCK + k, values);
         }
+    }
+
+    /// How many pairs push node `i`: those of the segment it starts and of
+    /// the one it ends (`prev`), as the last segment sums counted them
+    /// ([`yarn_model::step::pushing_pairs`]).
+    fn pushing_at(&self, i: u32, prev: Option<u32>) -> u32 {
+        self.sums[i as usize].pushing + prev.map_or(0, |p| self.sums[p as usize].pushing)
     }
 
     /// Node `i`'s self-contact force added to `f`: the sum of the segment
@@ -291,14 +293,17 @@ impl<T: Real> SelfContacts<T> {
     ) {
         let reach = T::of(2.0 * model.contact_rule().radius());
         let first = block * PAIRS_PER_BLOCK;
+        let links = model.links();
         scratch.measured.clear();
         // A pair that does not push is never read.
         for j in (0..out.x.len() / 4).filter(|&j| self.active[first + j]) {
             let m = scratch.measured.len();
-            for (end, i) in scratch.ends.iter_mut().zip(self.nodes[first + j]) {
+            let nodes = self.nodes[first + j];
+            for (end, i) in scratch.ends.iter_mut().zip(nodes) {
                 end.set(m, v.get(i as usize));
             }
             scratch.set_closest(m, &self.closest[first + j]);
+            scratch.sharing[m] = pair_sharing(nodes.map(|i| self.pushing_at(i, links[i as usize].prev())));
             scratch.measured.push(j);
         }
         scratch.friction_impulses(reach, model.coeffs());
@@ -311,11 +316,11 @@ impl<T: Real> SelfContacts<T> {
 
     /// The friction change at node `i`: the segment sums of the one it
     /// starts (`own`: whether it starts one) and the one it ends (`prev`),
-    /// added and [`cap`]ped to the longest change.
+    /// added.
     pub(crate) fn friction_at(&self, i: usize, own: bool, prev: Option<u32>) -> V3<T> {
         let none = SegmentSums::default();
         let (own, before) = (if own { &self.sums[i] } else { &none }, prev.map_or(&none, |p| &self.sums[p as usize]));
-        cap(own.first + before.last, own.first_longest.max(before.last_longest))
+        own.first + before.last
     }
 }
 
@@ -336,10 +341,12 @@ pub(crate) struct PairScratch<T> {
     distance: Vec<T>,
     s: Vec<T>,
     t: Vec<T>,
-    /// Per measured pair: its friction impulse (before its nodes' shares)
-    /// and its slip.
+    /// Per measured pair: its friction impulse (before its nodes' shares),
+    /// its slip, and how many pairs it shares the impulse with
+    /// ([`yarn_model::step::pair_sharing`]).
     impulse: Field<T>,
     slip: Vec<T>,
+    sharing: Vec<T>,
 }
 
 impl<T: Real> PairScratch<T> {
@@ -354,6 +361,7 @@ impl<T: Real> PairScratch<T> {
             t: vec![T::zero(); PAIRS_PER_BLOCK],
             impulse: field(),
             slip: vec![T::zero(); PAIRS_PER_BLOCK],
+            sharing: vec![T::one(); PAIRS_PER_BLOCK],
         }
     }
 
@@ -421,11 +429,11 @@ impl<T: Real> PairScratch<T> {
     /// disassembly).
     fn friction_impulses(&mut self, reach: T, c: &Coefficients<T>) {
         let m = self.measured.len();
-        let Self { ends, gap, distance, s, t, impulse, slip: slip_out, .. } = self;
+        let Self { ends, gap, distance, s, t, impulse, slip: slip_out, sharing, .. } = self;
         let (v0, v1, v2, v3) = (ends[0].prefix(m), ends[1].prefix(m), ends[2].prefix(m), ends[3].prefix(m));
         let (gx, gy, gz, distance, s, t) = (&gap.x[..m], &gap.y[..m], &gap.z[..m], &distance[..m], &s[..m], &t[..m]);
         let [jx, jy, jz] = impulse.prefix_mut(m);
-        let slip_out = &mut slip_out[..m];
+        let (slip_out, sharing) = (&mut slip_out[..m], &sharing[..m]);
         let (zero, one) = (T::zero(), T::one());
         let limit = c.friction * c.self_contact_impulse;
         for k in 0..m {
@@ -443,7 +451,7 @@ impl<T: Real> PairScratch<T> {
                 zero + shares[0] * shares[0] + shares[1] * shares[1] + shares[2] * shares[2] + shares[3] * shares[3];
             let cut = limit * push_depth(reach - d, reach) * inverse_mass;
             let retention = (one - cut / slip).max(zero);
-            let scale = (retention - one) / inverse_mass;
+            let scale = (retention - one) / (inverse_mass * sharing[k]);
             (jx[k], jy[k], jz[k], slip_out[k]) = (wt[0] * scale, wt[1] * scale, wt[2] * scale, slip);
         }
     }
@@ -534,6 +542,8 @@ mod tests {
         let c = Coefficients::<T>::new(&params);
         let reach = T::of(1.5);
         let mut scratch = PairScratch::<T>::new();
+        // Shared with 1 to 7 pairs.
+        let sharing_of = |m: usize| T::of((1 + m % 7) as f64);
         let (mut pushing, mut slipping) = (0, 0);
         for block in pairs::<T>().chunks(PAIRS_PER_BLOCK) {
             scratch.measured = (0..block.len()).collect();
@@ -557,12 +567,14 @@ mod tests {
                     end.set(k, v);
                 }
                 scratch.set_closest(k, &found[m]);
+                scratch.sharing[k] = sharing_of(m);
             }
             scratch.friction_impulses(reach, &c);
             for (k, &m) in scratch.measured.iter().enumerate() {
                 let v =
                     [scratch.ends[0].get(k), scratch.ends[1].get(k), scratch.ends[2].get(k), scratch.ends[3].get(k)];
-                let expected = self_contact_friction_at(&found[m], [&v[0], &v[1], &v[2], &v[3]], reach, &c);
+                let expected =
+                    self_contact_friction_at(&found[m], [&v[0], &v[1], &v[2], &v[3]], reach, sharing_of(m), &c);
                 slipping += usize::from(expected.is_some());
                 let expected = expected.unwrap_or([V3::zeros(); 4]);
                 assert_eq!(format!("{:?}", scratch.friction_change(k)), format!("{expected:?}"), "{:?}", block[m]);
