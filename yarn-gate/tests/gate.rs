@@ -552,10 +552,13 @@ fn cli_pareto_reports_every_configuration_and_marks_one_recommended() {
 /// forces are equal and opposite) and the largest speed, with the
 /// certificate's coast v_max/β in yarn radii. About a minute:
 /// `cargo test --release -p yarn-gate --test gate -- --ignored --nocapture measure_the_free_patch_drift`.
+/// `DRIFT_SUBSTEPS=N` runs N substeps instead (a multiple of 100,000).
 #[test]
 #[ignore = "a measurement, printed"]
 fn measure_the_free_patch_drift() {
     const WINDOW: u64 = 25_000;
+    let substeps: u64 =
+        std::env::var("DRIFT_SUBSTEPS").map_or(1_000_000, |n| n.parse().expect("DRIFT_SUBSTEPS: a count"));
     let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
     let r = fabric.yarn_radius();
     for (self_contact_stiffness, friction) in [(1600.0, 0.3), (1600.0, 0.0), (1600.0, 1.0), (0.0, 0.3)] {
@@ -564,7 +567,7 @@ fn measure_the_free_patch_drift() {
         let mut backend = yarn_backend_cpu::Rayon::with_threads(2).unwrap();
         backend.load(&fabric, &params).unwrap();
         let mut last = backend.state().unwrap().cast::<f64>();
-        for window in 1..=40 {
+        for window in 1..=substeps / WINDOW {
             backend.advance(WINDOW).unwrap();
             let state = backend.state().unwrap().cast::<f64>();
             if window % 4 == 0 {
