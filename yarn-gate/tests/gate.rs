@@ -161,6 +161,24 @@ fn cli_bad_input_is_a_clear_error() {
     let out = run(&["check", "--rest-curl", "1.5", "--size", "3x3"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("rest_curl"));
+    let out = run(&["check", "--friction=-1", "--size", "3x3", "--backend", "serial-f32"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("`friction` is -1"));
+}
+
+/// `check --friction` sets the dynamic path's μ, and the report says
+/// which: none with 0, the preset's 0.3 by default.
+#[test]
+fn cli_check_reports_the_friction_it_ran_with() {
+    let run = |friction: Option<&str>| {
+        let mut args = vec!["check", "--size", "3x3", "--backend", "serial-f32", "--steps", "2000"];
+        args.extend(friction.map(|mu| ["--friction", mu]).into_iter().flatten());
+        let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate")).args(&args).output().unwrap();
+        String::from_utf8_lossy(&output.stdout).lines().next().unwrap_or_default().to_owned()
+    };
+    assert!(run(Some("0")).contains("by dynamics without friction on serial-f32"), "{}", run(Some("0")));
+    assert!(run(Some("1.5")).contains("by dynamics with friction μ = 1.5 on"), "{}", run(Some("1.5")));
+    assert!(run(None).contains("by dynamics with friction μ = 0.3 on"), "{}", run(None));
 }
 
 #[test]

@@ -63,6 +63,11 @@ pub struct CheckArgs {
     /// in both]. 1,600 is the drape's.
     #[arg(long)]
     self_contact: Option<f64>,
+    /// Friction coefficient μ of the dynamic path, persistent contacts and
+    /// self-contact alike; 0 turns friction off [default: the preset's,
+    /// 0.3]. The static solve is frictionless whatever it is.
+    #[arg(long)]
+    friction: Option<f64>,
     /// Nodes a loop of the default preset's interlooped geometry: even, at
     /// least 10 (default 24, `Geometry::nodes_per_loop`).
     #[arg(long)]
@@ -96,6 +101,7 @@ impl CheckArgs {
         let mut params = self.preset.params();
         params.rest_curl = self.rest_curl.unwrap_or(params.rest_curl);
         params.self_contact_stiffness = self.self_contact.unwrap_or(params.self_contact_stiffness);
+        params.friction = self.friction.unwrap_or(params.friction);
         let chart = self.pattern.chart(self.size)?;
         let solver = self.solver.as_deref();
         let backend = self.backend.as_deref().unwrap_or("serial");

@@ -163,6 +163,9 @@ pub struct RestReport {
     pub contacts: usize,
     /// Self-contact's stiffness k_sc (0: off).
     pub self_contact: f64,
+    /// Friction coefficient μ (the dynamic path's; the static solve has
+    /// none).
+    pub friction: f64,
     /// Whether the relaxation's rest was certified.
     pub certified: bool,
     /// The relaxation: its certificate, work and wall time.
@@ -396,6 +399,7 @@ fn run<S: Settle>(
         nodes: fabric.node_count(),
         contacts: fabric.contacts().len(),
         self_contact: config.params.self_contact_stiffness,
+        friction: config.params.friction,
         certified: relaxed.certificate.certified,
         rest: relaxed.settled(),
         energy_initial: step::energy(&ruler, &start).total(),
@@ -490,7 +494,10 @@ impl RestReport {
     pub fn table(&self) -> String {
         let path = match self.path {
             Path::Static => "frictionless static solve in f64".to_owned(),
-            Path::Dynamic => format!("dynamics with friction on {}", self.backend),
+            Path::Dynamic if self.friction > 0.0 => {
+                format!("dynamics with friction μ = {} on {}", self.friction, self.backend)
+            }
+            Path::Dynamic => format!("dynamics without friction on {}", self.backend),
         };
         let f = &self.figures;
         let touching =
