@@ -579,7 +579,7 @@ fn measure_the_free_patch_drift() {
         std::env::var("DRIFT_SUBSTEPS").map_or(1_000_000, |n| n.parse().expect("DRIFT_SUBSTEPS: a count"));
     let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
     let r = fabric.yarn_radius();
-    for (self_contact_stiffness, friction) in [(1600.0, 0.3), (1600.0, 0.0), (1600.0, 1.0), (0.0, 0.3)] {
+    for (self_contact_stiffness, friction) in [(1600.0, 0.3), (1600.0, 0.0), (1600.0, 1.0), (0.0, 0.3), (0.0, 0.0)] {
         println!("k_sc = {self_contact_stiffness}, μ = {friction}");
         let params = Params { self_contact_stiffness, friction, ..Params::default() };
         let mut backend = yarn_backend_cpu::Rayon::with_threads(2).unwrap();
