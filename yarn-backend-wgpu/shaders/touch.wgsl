@@ -70,7 +70,7 @@ fn pair_friction(x: Quad, w: Quad, sharing: f32) -> Quad {
     }
     let inverse_mass = mul(shares.x, shares.x) + mul(shares.y, shares.y) + mul(shares.z, shares.z)
         + mul(shares.w, shares.w);
-    let cut = mul(mul(mul(p.friction, p.self_impulse), push_depth(p.reach - d)), inverse_mass);
+    let cut = mul(mul(mul(mul(p.friction, p.self_impulse), push_depth(p.reach - d)), inverse_mass), sharing);
     let retention = max(1.0 - div_rounded(cut, slip), 0.0);
     let j = mul3(slip_velocity, div_rounded(retention - 1.0, mul(inverse_mass, sharing)));
     return Quad(-mul3(j, shares.x), -mul3(j, shares.y), mul3(j, shares.z), mul3(j, shares.w));

@@ -606,3 +606,125 @@ fn measure_the_free_patch_drift() {
         }
     }
 }
+
+/// What the friction filter does at the contacts of a patch that is still
+/// creeping. A contact may stick when its friction can take out all of its
+/// tangential slip in one substep (its own Coulomb cut is at least its slip
+/// at v*), and slides where it cannot. The Jacobi filter computes every
+/// contact's change from v* and adds them, so where contacts share nodes
+/// the slip after the filter need not be zero even where it may stick. This
+/// relaxes the free 4x4 patch at μ = 0.3, with self-contact and without it,
+/// on `Rayon` (`FILTER_SUBSTEPS`, default 1,000,000), runs one reference
+/// substep, and prints for the persistent contacts and the self-contact
+/// pairs that press: how far apart the pairs are; how many slide, and by
+/// how much their slip passes their cut; and for those that may stick, the
+/// slip the filter leaves as a fraction of the slip before it.
+#[test]
+#[ignore = "a measurement: prints which contacts slide and how much slip the friction filter leaves"]
+fn measure_what_the_friction_filter_leaves() {
+    use yarn_model::step::{Scratch, accumulate_forces, segment_end, substep};
+    use yarn_model::terms::{Closest, push_depth};
+    use yarn_model::{Model, V3};
+    let substeps: u64 =
+        std::env::var("FILTER_SUBSTEPS").map_or(1_000_000, |n| n.parse().expect("FILTER_SUBSTEPS: a count"));
+    let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
+    for self_contact_stiffness in [1600.0, 0.0] {
+        let params = Params { self_contact_stiffness, friction: 0.3, ..Params::default() };
+        let mut backend = yarn_backend_cpu::Rayon::with_threads(2).unwrap();
+        backend.load(&fabric, &params).unwrap();
+        backend.advance(substeps).unwrap();
+        let state = backend.state().unwrap().cast::<f64>();
+        let model = Model::<f64>::new(&fabric, &params).unwrap();
+        let c = *model.coeffs();
+        let x = &state.positions;
+        let mut forces = Vec::new();
+        accumulate_forces(&model, x, &mut forces);
+        let v_star: Vec<V3<f64>> =
+            state.velocities.iter().zip(&forces).map(|(v, f)| (v + f * c.h_over_m) * c.damping_factor).collect();
+        let mut after = state.clone();
+        substep(&model, &mut after, &mut Scratch::default());
+        let v_after = &after.velocities;
+        // Per contact: (slip at v*, the most friction may cut, slip after).
+        let tangential = |w: V3<f64>, n: &V3<f64>| (w - n * w.dot(n)).norm();
+        let mut persistent = Vec::new();
+        for (k, _) in model.contacts().iter().zip(model.alive()).filter(|(_, alive)| **alive) {
+            let (a, b) = (k.a as usize, k.b as usize);
+            let d = x[b] - x[a];
+            let length = d.norm();
+            if length < k.rest && length > 0.0 {
+                let n = d / length;
+                let cut = c.friction * c.friction_impulse * (k.rest - length);
+                persistent.push((tangential(v_star[b] - v_star[a], &n), cut, tangential(v_after[b] - v_after[a], &n)));
+            }
+        }
+        let reach = 2.0 * model.contact_rule().radius();
+        let mut pairs = Vec::new();
+        yarn_model::self_contact::find_pairs(&model, x, 0.0, &mut pairs);
+        let (mut self_pairs, mut distances) = (Vec::new(), Vec::new());
+        for &[a, b] in pairs.iter().filter(|_| model.self_contact()) {
+            let ends = [a as usize, segment_end(&model, a as usize), b as usize, segment_end(&model, b as usize)];
+            let closest = Closest::of(&x[ends[0]], &x[ends[1]], &x[ends[2]], &x[ends[3]]);
+            if !closest.within(reach) {
+                continue;
+            }
+            distances.push(closest.distance);
+            let (s, t) = (closest.s, closest.t);
+            let n = closest.gap / closest.distance;
+            let w =
+                |v: &[V3<f64>]| (v[ends[2]] * (1.0 - t) + v[ends[3]] * t) - (v[ends[0]] * (1.0 - s) + v[ends[1]] * s);
+            let inverse_mass = (1.0 - s).powi(2) + s * s + (1.0 - t).powi(2) + t * t;
+            let cut = c.friction * c.self_contact_impulse * push_depth(reach - closest.distance, reach) * inverse_mass;
+            self_pairs.push((tangential(w(&v_star), &n), cut, tangential(w(v_after), &n)));
+        }
+        println!("k_sc = {self_contact_stiffness}, μ = 0.3, after {substeps} substeps:");
+        if !distances.is_empty() {
+            distances.sort_by(f64::total_cmp);
+            let r = model.contact_rule().radius();
+            println!(
+                "  self-contact pairs pressed to {:.3} r (closest), {:.3} r (median), {:.3} r (farthest); the push's \
+                 onset ends at {:.3} r",
+                distances[0] / r,
+                distances[distances.len() / 2] / r,
+                distances[distances.len() - 1] / r,
+                (reach - reach * yarn_model::terms::CONTACT_ONSET) / r
+            );
+        }
+        for (name, contacts) in [("persistent contacts", persistent), ("self-contact pairs", self_pairs)] {
+            let mut left: Vec<f64> = contacts
+                .iter()
+                .filter(|(slip, cut, _)| *slip > 0.0 && cut >= slip)
+                .map(|(slip, _, after)| after / slip)
+                .collect();
+            left.sort_by(f64::total_cmp);
+            let mut beyond: Vec<f64> =
+                contacts.iter().filter(|(slip, cut, _)| cut < slip).map(|(slip, cut, _)| slip / cut).collect();
+            beyond.sort_by(f64::total_cmp);
+            let slipping = beyond.len();
+            if slipping > 0 {
+                println!(
+                    "  {name}: of the {slipping} that slip, the slip at v* is {:.2}..{:.2} times what friction may cut \
+                     (median {:.2})",
+                    beyond[0],
+                    beyond[slipping - 1],
+                    beyond[slipping / 2]
+                );
+            }
+            if left.is_empty() {
+                println!("  {name}: {} pressed, none that should stick ({slipping} slipping)", contacts.len());
+                continue;
+            }
+            let at = |q: f64| left[((left.len() - 1) as f64 * q).round() as usize];
+            let stuck = left.iter().filter(|&&f| f < 1e-3).count();
+            println!(
+                "  {name}: {} pressed, {} should stick ({slipping} slip); slip left after the filter, as a fraction \
+                 of before: median {:.3}, quartiles {:.3}..{:.3}, most {:.3}; stopped (< 0.001) {stuck}",
+                contacts.len(),
+                left.len(),
+                at(0.5),
+                at(0.25),
+                at(0.75),
+                at(1.0)
+            );
+        }
+    }
+}

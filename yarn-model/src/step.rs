@@ -250,19 +250,21 @@ pub fn friction_change<T: Real>(
 /// (1 − s, s, 1 − t, t), and the slip is the tangential part of
 /// w = v_q(t) − v_p(s). An impulse j on the pair changes w by j W, with
 /// W m = (1 − s)² + s² + (1 − t)² + t² the pair's inverse effective mass
-/// (2 for two nodes, as a persistent contact has). Coulomb's limit
-/// |j| ≤ μ h N, with N = k_sc g(2r − d) the pair's push
-/// ([`crate::terms::push_depth`]), lets it cut the slip by at most
-/// μ h N W, never past zero.
+/// (2 for two nodes, as a persistent contact has).
 ///
-/// The impulse is then shared: divided by `sharing`, the most pushing
-/// pairs at any of the pair's four nodes ([`pushing_pairs`]), and each
-/// node gets its share of it. So the changes of every pair stay equal and
-/// opposite, and a node's sum over its pairs is never longer than its
-/// longest pair's undivided change: many contacts slipping the same way at
-/// one node cannot reverse its slip, and momentum is kept. (A cap on each
-/// node's sum, the earlier bound, gave a node less than its partners got
-/// back, and a free patch drifted.)
+/// The impulse that would stop the slip, −w_t / W, is shared: divided by
+/// `sharing`, the most pushing pairs at any of the pair's four nodes
+/// ([`pushing_pairs`]). Coulomb's limit then holds the pair's impulse to
+/// |j| ≤ μ h N, with N = k_sc g(2r − d) the pair's own push
+/// ([`crate::terms::push_depth`]), and each node gets its share of it.
+/// So the changes of every pair stay equal and opposite, and a node's sum
+/// over its pairs is never longer than its longest pair's slip: many
+/// contacts slipping the same way at one node cannot reverse its slip,
+/// and momentum is kept. Where they all slide, the node feels every
+/// pair's limit, not one pair's shared out. (Dividing the limit by
+/// `sharing` too, the rule before, let a free patch's roll creep on twice
+/// as fast; a cap on each node's sum, before that, gave a node less than
+/// its partners got back, and a free patch drifted.)
 #[inline]
 pub fn self_contact_friction<T: Real>(
     x: [&V3<T>; 4],
@@ -297,7 +299,8 @@ pub fn self_contact_friction_at<T: Real>(
         return None;
     }
     let inverse_mass = shares.iter().fold(T::zero(), |sum, &share| sum + share * share);
-    let cut = c.friction * c.self_contact_impulse * push_depth(reach - d, reach) * inverse_mass;
+    // The limit on the shared impulse, times `sharing`: the pair's own.
+    let cut = c.friction * c.self_contact_impulse * push_depth(reach - d, reach) * inverse_mass * sharing;
     let retention = (one - cut / slip).max(T::zero());
     let j = wt * ((retention - one) / (inverse_mass * sharing));
     Some([-(j * shares[0]), -(j * shares[1]), j * shares[2], j * shares[3]])
@@ -878,10 +881,13 @@ mod tests {
     /// Two parallel yarns 1.5 apart (reach 1.8), one with nodes a unit
     /// apart and one 0.6 apart, sliding past each other along their length:
     /// most nodes are pushed by three pairs or more, all slipping the same
-    /// way, and the two sides' nodes by different counts. Self-contact friction keeps the patch's
-    /// momentum (gravity off, so Σv only decays by the damping factor),
-    /// and no node's change is longer than the longest undivided change
-    /// any of its pairs asks, so many pairs do not add up past one.
+    /// way, and the two sides' nodes by different counts. Self-contact
+    /// friction keeps the patch's momentum (gravity off, so Σv only decays
+    /// by the damping factor), and no node's change is longer than the
+    /// longest change that would stop one of its pairs' slip, so many pairs
+    /// do not add up past one. Where friction is weak (μ = 0.01) the pairs
+    /// slide, and a node pushed by several takes more than one pair's
+    /// Coulomb limit: each pair keeps its own.
     #[test]
     fn self_contact_friction_keeps_momentum_where_many_pairs_share_a_node() {
         let n = 7u32;
@@ -901,48 +907,65 @@ mod tests {
             ..FabricParts::default()
         })
         .unwrap();
-        let params = Params { gravity: 0.0, friction: 1.0, self_contact_stiffness: 800.0, ..Params::default() };
-        let model = Model::<f64>::new(&fabric, &params).unwrap();
-        let mut state = State::<f64>::at_rest(&fabric);
-        for (i, v) in state.velocities.iter_mut().enumerate() {
-            let along = if i < n as usize { 0.02 } else { -0.03 };
-            *v = V3::new(along, 0.001 * i as f64, -0.002 * (i % 3) as f64);
-        }
-        let c = model.coeffs();
-        let momentum = |v: &[V3<f64>]| v.iter().sum::<V3<f64>>();
-        let before = momentum(&state.velocities);
-        // Each node's longest undivided change, from v* as the substep sees it.
-        let reach = 2.0 * model.contact_rule().radius();
-        let pairs = touching(&model, &state.positions);
-        let mut pushing = Vec::new();
-        pushing_pairs(&model, &state.positions, &pairs, &mut pushing);
-        assert!(pushing.iter().filter(|&&k| k >= 3).count() >= 8, "{pushing:?}");
-        let mut forces = Vec::new();
-        accumulate_forces(&model, &state.positions, &mut forces);
-        let v_star: Vec<_> =
-            state.velocities.iter().zip(&forces).map(|(v, f)| (v + f * c.h_over_m) * c.damping_factor).collect();
-        let mut longest = vec![0.0f64; state.len()];
-        for &[a, b] in &pairs {
-            let ends = [a as usize, segment_end(&model, a as usize), b as usize, segment_end(&model, b as usize)];
-            let x = ends.map(|i| &state.positions[i]);
-            if let Some(dv) = self_contact_friction(x, ends.map(|i| &v_star[i]), reach, 1.0, c) {
-                for (i, dv) in ends.into_iter().zip(dv) {
-                    longest[i] = longest[i].max(dv.norm());
+        for friction in [1.0, 0.01] {
+            let params = Params { gravity: 0.0, friction, self_contact_stiffness: 800.0, ..Params::default() };
+            let model = Model::<f64>::new(&fabric, &params).unwrap();
+            let mut state = State::<f64>::at_rest(&fabric);
+            for (i, v) in state.velocities.iter_mut().enumerate() {
+                let along = if i < n as usize { 0.02 } else { -0.03 };
+                *v = V3::new(along, 0.001 * i as f64, -0.002 * (i % 3) as f64);
+            }
+            let c = model.coeffs();
+            let momentum = |v: &[V3<f64>]| v.iter().sum::<V3<f64>>();
+            let before = momentum(&state.velocities);
+            // Each node's longest change that would stop a pair's slip, and
+            // its longest under Coulomb's limit, neither shared, from v* as
+            // the substep sees it.
+            let reach = 2.0 * model.contact_rule().radius();
+            let sticking = Coefficients::<f64>::new(&Params { friction: 1e12, ..params });
+            let pairs = touching(&model, &state.positions);
+            let mut pushing = Vec::new();
+            pushing_pairs(&model, &state.positions, &pairs, &mut pushing);
+            assert!(pushing.iter().filter(|&&k| k >= 3).count() >= 8, "{pushing:?}");
+            let mut forces = Vec::new();
+            accumulate_forces(&model, &state.positions, &mut forces);
+            let v_star: Vec<_> =
+                state.velocities.iter().zip(&forces).map(|(v, f)| (v + f * c.h_over_m) * c.damping_factor).collect();
+            let (mut stopping, mut limited) = (vec![0.0f64; state.len()], vec![0.0f64; state.len()]);
+            for &[a, b] in &pairs {
+                let ends = [a as usize, segment_end(&model, a as usize), b as usize, segment_end(&model, b as usize)];
+                let (x, v) = (ends.map(|i| &state.positions[i]), ends.map(|i| &v_star[i]));
+                for (coefficients, longest) in [(&sticking, &mut stopping), (c, &mut limited)] {
+                    if let Some(dv) = self_contact_friction(x, v, reach, 1.0, coefficients) {
+                        for (i, dv) in ends.into_iter().zip(dv) {
+                            longest[i] = longest[i].max(dv.norm());
+                        }
+                    }
                 }
             }
-        }
-        let mut scratch = Scratch::default();
-        substep(&model, &mut state, &mut scratch);
-        let after = momentum(&state.velocities);
-        assert!(
-            (after - before * c.damping_factor).norm() < 1e-12,
-            "momentum {before:?} -> {after:?}, off by {:e}",
-            (after - before * c.damping_factor).norm()
-        );
-        let moved = scratch.self_friction.iter().filter(|dv| dv.norm() > 0.0).count();
-        assert!(moved >= 12, "friction changed {moved} nodes");
-        for (i, dv) in scratch.self_friction.iter().enumerate() {
-            assert!(dv.norm() <= longest[i] * (1.0 + 1e-12), "node {i}: {} past {}", dv.norm(), longest[i]);
+            let mut scratch = Scratch::default();
+            substep(&model, &mut state, &mut scratch);
+            let after = momentum(&state.velocities);
+            assert!(
+                (after - before * c.damping_factor).norm() < 1e-12,
+                "μ = {friction}: momentum {before:?} -> {after:?}, off by {:e}",
+                (after - before * c.damping_factor).norm()
+            );
+            let moved = scratch.self_friction.iter().filter(|dv| dv.norm() > 0.0).count();
+            assert!(moved >= 12, "μ = {friction}: friction changed {moved} nodes");
+            for (i, dv) in scratch.self_friction.iter().enumerate() {
+                assert!(
+                    dv.norm() <= stopping[i] * (1.0 + 1e-12),
+                    "μ = {friction}, node {i}: {} past {}",
+                    dv.norm(),
+                    stopping[i]
+                );
+            }
+            if friction < 0.1 {
+                let past_one_limit =
+                    scratch.self_friction.iter().zip(&limited).filter(|(dv, limit)| dv.norm() > **limit * 1.01).count();
+                assert!(past_one_limit >= 4, "{past_one_limit} nodes took more than one pair's Coulomb limit");
+            }
         }
     }
 

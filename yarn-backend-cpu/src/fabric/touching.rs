@@ -449,7 +449,7 @@ impl<T: Real> PairScratch<T> {
             let slip = (wt[0] * wt[0] + wt[1] * wt[1] + wt[2] * wt[2]).sqrt();
             let inverse_mass =
                 zero + shares[0] * shares[0] + shares[1] * shares[1] + shares[2] * shares[2] + shares[3] * shares[3];
-            let cut = limit * push_depth(reach - d, reach) * inverse_mass;
+            let cut = limit * push_depth(reach - d, reach) * inverse_mass * sharing[k];
             let retention = (one - cut / slip).max(zero);
             let scale = (retention - one) / (inverse_mass * sharing[k]);
             (jx[k], jy[k], jz[k], slip_out[k]) = (wt[0] * scale, wt[1] * scale, wt[2] * scale, slip);
