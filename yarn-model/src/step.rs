@@ -840,15 +840,18 @@ mod tests {
     }
 
     proptest! {
-        /// Friction at a self-contact pair, random segments and velocities:
-        /// the pair's slip at its closest points shrinks by at most
-        /// μ h k_sc g(2r − d) W and never reverses, its normal relative
-        /// velocity is kept, and the nodes' changes carry no net momentum.
+        /// Friction at a self-contact pair, random segments, velocities and
+        /// sharing S: the pair's slip at its closest points shrinks by its
+        /// share of stopping it, slip / S, or by its own Coulomb cut
+        /// μ h k_sc g(2r − d) W, whichever is less, and never reverses; its
+        /// normal relative velocity is kept, and the nodes' changes carry no
+        /// net momentum.
         #[test]
         fn self_contact_friction_cuts_the_pairs_slip_without_reversing_it(
             ends in prop::array::uniform4((-1.5..1.5f64, -1.5..1.5f64, -0.8..0.8f64)),
             speeds in prop::array::uniform4((-5.0..5.0f64, -5.0..5.0f64, -5.0..5.0f64)),
             mu in 0.0..2.0f64,
+            sharing in 1u32..8,
         ) {
             let params = Params { friction: mu, self_contact_stiffness: 800.0, ..Params::default() };
             let c = Coefficients::<f64>::new(&params);
@@ -861,7 +864,7 @@ mod tests {
             let at = |v: &[V3<f64>; 4]| (v[2] * (1.0 - t) + v[3] * t) - (v[0] * (1.0 - s) + v[1] * s);
             let tangential = |w: V3<f64>| w - n * w.dot(&n);
             let before = tangential(at(&v));
-            let Some(dv) = self_contact_friction(x.each_ref(), v.each_ref(), reach, 1.0, &c) else {
+            let Some(dv) = self_contact_friction(x.each_ref(), v.each_ref(), reach, f64::from(sharing), &c) else {
                 prop_assert!(before.norm() == 0.0, "no friction on a pair within reach");
                 return Ok(());
             };
@@ -870,7 +873,7 @@ mod tests {
             let shares = [(1.0 - s), s, (1.0 - t), t];
             let w_m = shares.iter().map(|a| a * a).sum::<f64>();
             let cut = mu * c.self_contact_impulse * push_depth(reach - gap.norm(), reach) * w_m;
-            let expected = (before.norm() - cut).max(0.0);
+            let expected = before.norm() - (before.norm() / f64::from(sharing)).min(cut);
             prop_assert!((after.norm() - expected).abs() <= 1e-9 * (1.0 + before.norm()), "slip {} -> {}, not {expected}", before.norm(), after.norm());
             prop_assert!(after.dot(&before) >= -1e-12, "the slip reversed");
             prop_assert!((at(&after_v) - at(&v)).dot(&n).abs() <= 1e-9 * (1.0 + before.norm()), "the normal velocity changed");
