@@ -262,9 +262,9 @@ pub fn friction_change<T: Real>(
 /// contacts slipping the same way at one node cannot reverse its slip,
 /// and momentum is kept. Where they all slide, the node feels every
 /// pair's limit, not one pair's shared out. (Dividing the limit by
-/// `sharing` too, the rule before, let a free patch's roll creep on twice
-/// as fast; a cap on each node's sum, before that, gave a node less than
-/// its partners got back, and a free patch drifted.)
+/// `sharing` too, the rule before, let a free patch's roll creep on 1.4 to
+/// 2.4 times as fast; a cap on each node's sum, before that, gave a node
+/// less than its partners got back, and a free patch drifted.)
 #[inline]
 pub fn self_contact_friction<T: Real>(
     x: [&V3<T>; 4],
