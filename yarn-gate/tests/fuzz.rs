@@ -17,6 +17,7 @@ use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
 use yarn_backend_cpu::{Rayon, Reference, Serial};
 use yarn_backend_wgpu::{Gpu, Mode, Wgpu};
+use yarn_gate::conformance::strategy;
 use yarn_model::{Backend, Model, Params, State, V3};
 use yarn_topology::{Boundary, Chart, Fabric, FabricParts, Geometry, Pin, Vec3, YarnSpan};
 
@@ -84,6 +85,8 @@ enum Flaw {
     ContactPastEnd(u32),
     /// A contact from node k to itself.
     SelfContact(usize),
+    /// Contact k repeated, its nodes swapped.
+    DuplicateContact(usize),
     /// A pin on a node past the end (or far out).
     PinPastEnd(u32),
     /// A pin toward an awkward target.
@@ -107,6 +110,7 @@ fn flaw() -> impl Strategy<Value = Flaw> {
         (any::<usize>(), point()).prop_map(|(k, p)| Flaw::Position(k, p)),
         far().prop_map(Flaw::ContactPastEnd),
         any::<usize>().prop_map(Flaw::SelfContact),
+        any::<usize>().prop_map(Flaw::DuplicateContact),
         far().prop_map(Flaw::PinPastEnd),
         point().prop_map(Flaw::PinTarget),
         (0usize..16).prop_map(Flaw::Boundary),
@@ -138,7 +142,7 @@ fn yarns_from(n: usize, cuts: &[(usize, bool)]) -> Vec<YarnSpan> {
 }
 
 /// Valid user parts: 1 to 13 nodes at ordinary points, in one open yarn or
-/// several open and closed ones, contacts between distinct nodes, pins on
+/// several open and closed ones, contacts between distinct nodes (each pair once), pins on
 /// nodes with ordinary targets, a boundary list of the right length or
 /// none, and an ordinary radius and direction or the defaults.
 fn valid_parts() -> impl Strategy<Value = FabricParts> {
@@ -155,7 +159,7 @@ fn valid_parts() -> impl Strategy<Value = FabricParts> {
         )
             .prop_map(move |(positions, contacts, pins, boundary, yarn_radius, course, cuts)| FabricParts {
                 yarns: yarns_from(n, &cuts),
-                contacts: contacts.into_iter().map(|(a, step)| [a, (a + step) % n as u32]).collect(),
+                contacts: strategy::distinct_contacts(contacts.into_iter().map(|(a, step)| [a, (a + step) % n as u32])),
                 pins: pins.into_iter().map(|(node, target)| Pin { node, target }).collect(),
                 boundary: if boundary { vec![Boundary::INTERIOR; n] } else { Vec::new() },
                 positions,
@@ -178,6 +182,11 @@ fn parts() -> impl Strategy<Value = FabricParts> {
             Some(Flaw::Position(k, p)) => parts.positions[k % n] = p,
             Some(Flaw::ContactPastEnd(far)) => parts.contacts.push([0, if far == 0 { n as u32 } else { far }]),
             Some(Flaw::SelfContact(k)) => parts.contacts.push([(k % n) as u32; 2]),
+            Some(Flaw::DuplicateContact(k)) => {
+                if let Some(&[a, b]) = parts.contacts.get(k % parts.contacts.len().max(1)) {
+                    parts.contacts.push([b, a]);
+                }
+            }
             Some(Flaw::PinPastEnd(far)) => {
                 parts.pins.push(Pin { node: if far == 0 { n as u32 } else { far }, target: Vec3::zeros() });
             }

@@ -579,7 +579,7 @@ mod tests {
     /// A fabric of several yarns laid as random walks (steps 0.4 to 1.5
     /// long, so no segment is zero), one yarn after another, each open or
     /// closed as `yarns` says (closed only from 3 nodes), with contacts
-    /// between random nodes of any yarns.
+    /// between random nodes of any yarns, each pair once.
     fn yarns_fabric(yarns: &[(usize, bool)], seed: u64) -> Fabric {
         let mut rng = seed | 1;
         let mut next = move || {
@@ -601,9 +601,10 @@ mod tests {
             spans.push(yarn_topology::YarnSpan { start, end, closed: closed && len >= 3 });
         }
         let n = positions.len();
+        let mut between = std::collections::HashSet::new();
         let contacts = (0..n / 2)
             .map(|_| [(next() * n as f64) as u32 % n as u32, (next() * n as f64) as u32 % n as u32])
-            .filter(|[a, b]| a != b)
+            .filter(|&[a, b]| a != b && between.insert((a.min(b), a.max(b))))
             .collect();
         Fabric::from_parts(FabricParts { positions, yarns: spans, contacts, ..FabricParts::default() }).unwrap()
     }

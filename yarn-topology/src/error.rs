@@ -240,6 +240,24 @@ pub enum TopologyError {
         /// The node named twice.
         node: usize,
     },
+    /// A contact joins the same two nodes as an earlier one, in either
+    /// order. A crossing is one contact: a repeat doubles its spring, and
+    /// under the persistent contacts' friction, which each contact applies
+    /// in full from the same slip (SPEC §4 step 3), k repeats turn a
+    /// sticking slip s into (1 − k)s every substep, which grows from k = 3.
+    #[error(
+        "contact {contact} joins nodes {a} and {b}, as contact {first} does; give each crossing one contact (a repeat doubles its spring and its friction)"
+    )]
+    DuplicateContact {
+        /// Offending contact.
+        contact: usize,
+        /// The earlier contact between the same nodes.
+        first: usize,
+        /// The offending contact's first node.
+        a: usize,
+        /// Its second node.
+        b: usize,
+    },
     /// A pin refers to a node that does not exist.
     #[error("pin {pin} refers to node {node}, but only nodes 0..{nodes} exist")]
     PinOutOfRange {

@@ -386,6 +386,7 @@ impl Fabric {
         if !(yarn_radius.is_finite() && yarn_radius > 0.0) {
             return Err(TopologyError::BadGeometry { name: "yarn_radius", value: yarn_radius });
         }
+        let mut first_between = std::collections::HashMap::with_capacity(contacts.len());
         let checked_contacts = contacts
             .iter()
             .enumerate()
@@ -397,6 +398,9 @@ impl Fabric {
                 }
                 if a == b {
                     return Err(TopologyError::SelfContact { contact, node: a as usize });
+                }
+                if let Some(first) = first_between.insert((a.min(b), a.max(b)), contact) {
+                    return Err(TopologyError::DuplicateContact { contact, first, a: a as usize, b: b as usize });
                 }
                 Ok((a, b))
             })
@@ -761,6 +765,8 @@ mod tests {
         assert_eq!(Fabric::from_parts(p), Err(TopologyError::ContactOutOfRange { contact: 1, node: 9, nodes: 4 }));
         let p = FabricParts { contacts: vec![[2, 2]], ..parts(4) };
         assert_eq!(Fabric::from_parts(p), Err(TopologyError::SelfContact { contact: 0, node: 2 }));
+        let p = FabricParts { contacts: vec![[0, 2], [1, 3], [2, 0]], ..parts(4) };
+        assert_eq!(Fabric::from_parts(p), Err(TopologyError::DuplicateContact { contact: 2, first: 0, a: 2, b: 0 }));
         let p = FabricParts { pins: vec![Pin { node: 4, target: Vec3::zeros() }], ..parts(4) };
         assert_eq!(Fabric::from_parts(p), Err(TopologyError::PinOutOfRange { pin: 0, node: 4, nodes: 4 }));
         let p = FabricParts { pins: vec![Pin { node: 1, target: Vec3::new(0.0, 0.0, f64::INFINITY) }], ..parts(4) };
