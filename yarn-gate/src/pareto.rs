@@ -72,6 +72,11 @@ pub struct ParetoArgs {
     /// absence makes.
     #[arg(long)]
     self_contact: Option<f64>,
+    /// Friction coefficient μ of the model, persistent contacts and
+    /// self-contact alike; 0 turns friction off [default: the preset's,
+    /// 0.3].
+    #[arg(long)]
+    friction: Option<f64>,
     /// Folder for pareto.csv and pareto.png (created if missing).
     #[arg(long, default_value = "pareto")]
     out: PathBuf,
@@ -93,10 +98,8 @@ impl ParetoArgs {
     /// stitch with `--preset paper`, an unknown backend, a backend failure
     /// other than a refused substep, or a file that cannot be written.
     pub fn run(&self) -> Result<Outcome, GateError> {
-        let preset = self.preset.params();
-        let params =
-            Params { self_contact_stiffness: self.self_contact.unwrap_or(preset.self_contact_stiffness), ..preset };
-        let patch = Patch { chart: self.pattern.chart(self.size)?, geometry: self.preset.geometry(), params };
+        let patch =
+            Patch { chart: self.pattern.chart(self.size)?, geometry: self.preset.geometry(), params: self.params() };
         // A chart the geometry cannot knit fails here, before any run.
         Fabric::from_chart(&patch.chart, &patch.geometry)?;
         let patch = &patch;
@@ -118,6 +121,17 @@ impl ParetoArgs {
 
     /// Timed runs per backend: each substep on each problem, `repeats`
     /// times.
+    /// The model every problem starts from: the preset's, with
+    /// `--self-contact` and `--friction` where given.
+    fn params(&self) -> Params {
+        let preset = self.preset.params();
+        Params {
+            self_contact_stiffness: self.self_contact.unwrap_or(preset.self_contact_stiffness),
+            friction: self.friction.unwrap_or(preset.friction),
+            ..preset
+        }
+    }
+
     fn runs_per_backend(&self) -> usize {
         let variants = if self.self_contact.is_some_and(|k| k > 0.0) { 2 } else { 1 };
         Problem::ALL.len() * self.substeps.len() * self.repeats.max(1) * variants
@@ -712,6 +726,30 @@ fn plot(path: &Path, rows: &[ParetoRow]) -> Result<(), GateError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::Parser;
+
+    /// `pareto`'s arguments alone, as the binary parses them.
+    #[derive(Debug, Parser)]
+    struct Pareto {
+        #[command(flatten)]
+        args: ParetoArgs,
+    }
+
+    fn params(args: &[&str]) -> Params {
+        Pareto::try_parse_from(std::iter::once("pareto").chain(args.iter().copied())).unwrap().args.params()
+    }
+
+    #[test]
+    fn the_model_is_the_presets_with_the_self_contact_and_friction_given() {
+        let default = Params::default();
+        assert_eq!(params(&[]), default);
+        let changed = params(&["--self-contact", "1600", "--friction", "0"]);
+        assert_eq!(
+            (changed.self_contact_stiffness, changed.friction, changed.stretch_stiffness),
+            (1600.0, 0.0, default.stretch_stiffness)
+        );
+        assert_eq!(params(&["--preset", "paper", "--friction", "1"]), Params { friction: 1.0, ..Params::paper() });
+    }
 
     fn row(problem: Problem, config: &str, wall: f64, err: f64) -> ParetoRow {
         ParetoRow {
