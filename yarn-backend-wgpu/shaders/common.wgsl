@@ -115,6 +115,8 @@ const CROWDED: u32 = 4u;
 const STRETCHED: u32 = 8u;
 // `Params::flags` bit: self-contact is on.
 const SELF_CONTACT: u32 = 4u;
+// `Params::flags` bit: stretched contacts have friction too.
+const FRICTION_IN_TENSION: u32 = 8u;
 
 // The global thread index of a dispatch that may be two-dimensional (a
 // fabric with more workgroups than one dimension allows).
@@ -228,16 +230,18 @@ fn joint_forces(s0: Segment, s1: Segment, rest_angle: f32, k: f32, min_sin: f32)
 }
 
 // `step::friction_change`: the change Δw to w = v_b − v_a of a contact with
-// gap d = x_b − x_a, or zero when it is not compressed or does not slip.
+// gap d = x_b − x_a, or zero when it is not compressed (or with
+// FRICTION_IN_TENSION stretched) or does not slip.
 fn friction_change(d: vec3<f32>, w: vec3<f32>, rest: f32) -> vec3<f32> {
     let length = norm(d);
-    let compressed = length < rest && length > 0.0;
-    let divisor = select(1.0, length, compressed);
+    let in_tension = (p.flags & FRICTION_IN_TENSION) != 0u;
+    let strained = (length < rest || (in_tension && length > rest)) && length > 0.0;
+    let divisor = select(1.0, length, strained);
     let n = vec3<f32>(div_rounded(d.x, divisor), div_rounded(d.y, divisor), div_rounded(d.z, divisor));
     let wt = w - mul3(n, mul(w.x, n.x) + mul(w.y, n.y) + mul(w.z, n.z));
     let slip = norm(wt);
-    let keep = compressed && slip > 0.0;
-    let dv_normal = p.friction_impulse * (rest - length);
+    let keep = strained && slip > 0.0;
+    let dv_normal = p.friction_impulse * abs(rest - length);
     let retention = max(1.0 - div_rounded(p.friction * dv_normal, select(1.0, slip, keep)), 0.0);
     return select(vec3<f32>(0.0), mul3(wt, retention - 1.0), keep);
 }

@@ -18,8 +18,8 @@ use crate::bindings::{
 };
 use crate::gpu::{Gpu, read_mapped};
 use crate::layout::{
-    CROWDED, DIVERGED, FRICTION_ON, FUSED_FMA, GpuChain, GpuParams, GpuPin, GpuSurface, MAX_COLLIDERS, OVERFLOWED,
-    SELF_CONTACT, STRETCHED,
+    CROWDED, DIVERGED, FRICTION_IN_TENSION, FRICTION_ON, FUSED_FMA, GpuChain, GpuParams, GpuPin, GpuSurface,
+    MAX_COLLIDERS, OVERFLOWED, SELF_CONTACT, STRETCHED,
 };
 use crate::record::Dispatch;
 use crate::timing::Timestamps;
@@ -200,7 +200,8 @@ impl GpuFabric {
             pins: self.buffers.pin_count,
             flags: if self.friction_on() { FRICTION_ON } else { 0 }
                 | if self.gpu.fused_fma { FUSED_FMA } else { 0 }
-                | if model.self_contact() { SELF_CONTACT } else { 0 },
+                | if model.self_contact() { SELF_CONTACT } else { 0 }
+                | if model.params().friction_in_tension { FRICTION_IN_TENSION } else { 0 },
             stretch: c.stretch,
             bend: c.bend,
             contact: c.contact,

@@ -97,6 +97,10 @@ pub(crate) const STRETCHED: u32 = 8;
 /// `Params::flags` bit: self-contact is on.
 pub(crate) const SELF_CONTACT: u32 = 4;
 
+/// `Params::flags` bit: stretched contacts have friction too
+/// (`yarn_model::Params::friction_in_tension`).
+pub(crate) const FRICTION_IN_TENSION: u32 = 8;
+
 /// Mirrors `Contact`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
@@ -285,6 +289,10 @@ mod tests {
         assert!(common.contains(&format!("const CROWDED: u32 = {CROWDED}u;")), "CROWDED differs");
         assert!(common.contains(&format!("const STRETCHED: u32 = {STRETCHED}u;")), "STRETCHED differs");
         assert!(common.contains(&format!("const SELF_CONTACT: u32 = {SELF_CONTACT}u;")), "SELF_CONTACT differs");
+        assert!(
+            common.contains(&format!("const FRICTION_IN_TENSION: u32 = {FRICTION_IN_TENSION}u;")),
+            "FRICTION_IN_TENSION differs"
+        );
         use crate::bindings::rows;
         let lists = shaders::LISTS;
         for (name, row) in [

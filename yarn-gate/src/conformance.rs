@@ -543,7 +543,8 @@ pub mod strategy {
     /// Parameters drawn across their valid ranges, with the substep kept
     /// at most a quarter of the single-element stability bound: a chain of
     /// springs is stable only below half of it, and contacts stiffen nodes
-    /// further. A quarter of them let slow blocks sleep ([`SLEEP_SHARE`]).
+    /// further. A quarter of them let slow blocks sleep ([`SLEEP_SHARE`]);
+    /// half give stretched contacts friction too.
     pub fn params() -> impl Strategy<Value = Params> {
         (
             100.0..2000.0f64,
@@ -556,14 +557,16 @@ pub mod strategy {
             0.05..0.25f64,
             prop_oneof![Just(0.0), -20.0..20.0f64],
             prop_oneof![3 => Just(0.0), 1 => 0.01..2.0f64],
+            any::<bool>(),
         )
-            .prop_map(|(ks, kb, kappa, kc, mu, beta, m, fraction, g, sleep_speed)| {
+            .prop_map(|(ks, kb, kappa, kc, mu, beta, m, fraction, g, sleep_speed, friction_in_tension)| {
                 let p = Params {
                     stretch_stiffness: ks,
                     bend_stiffness: kb,
                     rest_curl: kappa,
                     contact_stiffness: kc,
                     friction: mu,
+                    friction_in_tension,
                     damping: beta,
                     mass: m,
                     substep: 1.0,

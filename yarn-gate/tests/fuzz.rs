@@ -38,26 +38,29 @@ fn awkward() -> impl Strategy<Value = f64> {
 }
 
 fn params() -> impl Strategy<Value = Params> {
-    (prop::array::uniform14(prop_oneof![12 => Just(None), 1 => awkward().prop_map(Some)])).prop_map(|v| {
-        let d = Params::default();
-        let pick = |k: usize, default: f64| v[k].unwrap_or(default);
-        Params {
-            stretch_stiffness: pick(0, d.stretch_stiffness),
-            bend_stiffness: pick(1, d.bend_stiffness),
-            rest_curl: pick(2, d.rest_curl),
-            contact_stiffness: pick(3, d.contact_stiffness),
-            friction: pick(4, d.friction),
-            damping: pick(5, d.damping),
-            mass: pick(6, d.mass),
-            substep: pick(7, d.substep),
-            gravity: pick(8, d.gravity),
-            substep_limit: pick(9, d.substep_limit),
-            sleep_speed: pick(10, d.sleep_speed),
-            self_contact_stiffness: pick(11, d.self_contact_stiffness),
-            self_contact_skin: pick(12, d.self_contact_skin),
-            collider_stiffness: pick(13, d.collider_stiffness),
-        }
-    })
+    (prop::array::uniform14(prop_oneof![12 => Just(None), 1 => awkward().prop_map(Some)]), any::<bool>()).prop_map(
+        |(v, friction_in_tension)| {
+            let d = Params::default();
+            let pick = |k: usize, default: f64| v[k].unwrap_or(default);
+            Params {
+                stretch_stiffness: pick(0, d.stretch_stiffness),
+                bend_stiffness: pick(1, d.bend_stiffness),
+                rest_curl: pick(2, d.rest_curl),
+                contact_stiffness: pick(3, d.contact_stiffness),
+                friction: pick(4, d.friction),
+                friction_in_tension,
+                damping: pick(5, d.damping),
+                mass: pick(6, d.mass),
+                substep: pick(7, d.substep),
+                gravity: pick(8, d.gravity),
+                substep_limit: pick(9, d.substep_limit),
+                sleep_speed: pick(10, d.sleep_speed),
+                self_contact_stiffness: pick(11, d.self_contact_stiffness),
+                self_contact_skin: pick(12, d.self_contact_skin),
+                collider_stiffness: pick(13, d.collider_stiffness),
+            }
+        },
+    )
 }
 
 fn point() -> impl Strategy<Value = Vec3> {

@@ -167,18 +167,23 @@ fn cli_bad_input_is_a_clear_error() {
 }
 
 /// `check --friction` sets the dynamic path's μ, and the report says
-/// which: none with 0, the preset's 0.3 by default.
+/// which: none with 0, the preset's 0.3 by default; and whether
+/// `--friction-in-tension` gave stretched contacts friction too.
 #[test]
 fn cli_check_reports_the_friction_it_ran_with() {
-    let run = |friction: Option<&str>| {
+    let run = |extra: &[&str]| {
         let mut args = vec!["check", "--size", "3x3", "--backend", "serial-f32", "--steps", "2000"];
-        args.extend(friction.map(|mu| ["--friction", mu]).into_iter().flatten());
+        args.extend(extra);
         let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate")).args(&args).output().unwrap();
         String::from_utf8_lossy(&output.stdout).lines().next().unwrap_or_default().to_owned()
     };
-    assert!(run(Some("0")).contains("by dynamics without friction on serial-f32"), "{}", run(Some("0")));
-    assert!(run(Some("1.5")).contains("by dynamics with friction μ = 1.5 on"), "{}", run(Some("1.5")));
-    assert!(run(None).contains("by dynamics with friction μ = 0.3 on"), "{}", run(None));
+    let zero = run(&["--friction", "0"]);
+    assert!(zero.contains("by dynamics without friction on serial-f32"), "{zero}");
+    let high = run(&["--friction", "1.5"]);
+    assert!(high.contains("by dynamics with friction μ = 1.5 on"), "{high}");
+    assert!(run(&[]).contains("by dynamics with friction μ = 0.3 on"), "{}", run(&[]));
+    let tension = run(&["--friction-in-tension"]);
+    assert!(tension.contains("by dynamics with friction μ = 0.3, stretched contacts too, on"), "{tension}");
 }
 
 #[test]
@@ -568,7 +573,8 @@ fn cli_pareto_reports_every_configuration_and_marks_one_recommended() {
 /// node moved in the last 25,000 (in yarn radii), how far the centroid
 /// moved in them, the mean velocity |Σv|/n (zero for a free patch whose
 /// forces are equal and opposite) and the largest speed, with the
-/// certificate's coast v_max/β in yarn radii. About a minute:
+/// certificate's coast v_max/β in yarn radii; the last two scenes give stretched
+/// contacts friction too (`Params::friction_in_tension`). About two minutes:
 /// `cargo test --release -p yarn-gate --test gate -- --ignored --nocapture measure_the_free_patch_drift`.
 /// `DRIFT_SUBSTEPS=N` runs N substeps instead (a multiple of 100,000).
 #[test]
@@ -579,9 +585,18 @@ fn measure_the_free_patch_drift() {
         std::env::var("DRIFT_SUBSTEPS").map_or(1_000_000, |n| n.parse().expect("DRIFT_SUBSTEPS: a count"));
     let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
     let r = fabric.yarn_radius();
-    for (self_contact_stiffness, friction) in [(1600.0, 0.3), (1600.0, 0.0), (1600.0, 1.0), (0.0, 0.3), (0.0, 0.0)] {
-        println!("k_sc = {self_contact_stiffness}, μ = {friction}");
-        let params = Params { self_contact_stiffness, friction, ..Params::default() };
+    let scenes = [
+        (1600.0, 0.3, false),
+        (1600.0, 0.0, false),
+        (1600.0, 1.0, false),
+        (0.0, 0.3, false),
+        (0.0, 0.0, false),
+        (1600.0, 0.3, true),
+        (1600.0, 1.0, true),
+    ];
+    for (self_contact_stiffness, friction, friction_in_tension) in scenes {
+        println!("k_sc = {self_contact_stiffness}, μ = {friction}, friction in tension: {friction_in_tension}");
+        let params = Params { self_contact_stiffness, friction, friction_in_tension, ..Params::default() };
         let mut backend = yarn_backend_cpu::Rayon::with_threads(2).unwrap();
         backend.load(&fabric, &params).unwrap();
         let mut last = backend.state().unwrap().cast::<f64>();

@@ -32,6 +32,15 @@ pub struct Params {
     /// Coulomb friction coefficient μ at compressed contacts. 0 turns the
     /// friction pass off (default: 0.3).
     pub friction: f64,
+    /// Whether a stretched contact has friction too, sized by how far it
+    /// is stretched as a compressed one is by how far it is compressed
+    /// ([`crate::step::friction_change`]). A contact stands for two loops
+    /// hooked through each other, and a hook pulled apart presses its
+    /// yarns together at the crossing. Off, only compressed contacts have
+    /// friction, as in the paper (SPEC §4 step 3). On, a free 4x4 patch
+    /// with self-contact at μ = 1 comes nearly to rest where it otherwise
+    /// keeps rolling (docs/self-contact.md) (default: off).
+    pub friction_in_tension: bool,
     /// Viscous damping rate β in 1/s, applied implicitly. Higher settles
     /// faster but slows all motion (default: 10).
     pub damping: f64,
@@ -114,6 +123,8 @@ impl Params {
             rest_curl: 0.55,
             contact_stiffness: 250.0,
             friction: 0.3,
+            // The paper's friction acts only where a contact is compressed.
+            friction_in_tension: false,
             // Table 1's value; the paper's §7 prints 6, which SPEC §1 marks as an error.
             damping: 10.0,
             mass: 5e-3,

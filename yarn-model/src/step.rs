@@ -213,7 +213,9 @@ fn touch_potential_over<T: Real>(model: &Model<T>, x: &[V3<T>], pairs: &[[u32; 2
 /// Friction velocity change of one compressed contact (SPEC §4 step 3):
 /// the change `Δw` to the relative velocity w = v_b − v_a, or `None` when
 /// the contact is not compressed or has no tangential slip. Node a gets
-/// −Δw/2 and node b +Δw/2.
+/// −Δw/2 and node b +Δw/2. With [`crate::Params::friction_in_tension`] a
+/// stretched contact has friction too, its normal impulse sized by
+/// |rest − length|.
 #[inline]
 pub fn friction_change<T: Real>(
     xa: &V3<T>,
@@ -226,7 +228,8 @@ pub fn friction_change<T: Real>(
     let c = model.coeffs();
     let d = xb - xa;
     let length = d.norm();
-    if !(length < rest && length > T::zero()) {
+    let strained = length < rest || (model.params().friction_in_tension && length > rest);
+    if !(strained && length > T::zero()) {
         return None;
     }
     let n = d / length;
@@ -236,7 +239,7 @@ pub fn friction_change<T: Real>(
     if slip <= T::zero() {
         return None;
     }
-    let dv_normal = c.friction_impulse * (rest - length);
+    let dv_normal = c.friction_impulse * (rest - length).abs();
     let retention = (T::one() - c.friction * dv_normal / slip).max(T::zero());
     Some(wt * (retention - T::one()))
 }
@@ -787,7 +790,9 @@ mod tests {
         /// in every case: one compressed, where friction cuts the tangential
         /// slip |w_t| to max(0, |w_t| − μ Δv_n) and leaves the normal part
         /// alone, and one stretched, where it must not act at all, alone or
-        /// inside a substep.
+        /// inside a substep, unless stretched contacts have friction too
+        /// ([`Params::friction_in_tension`]): then it cuts the slip as a
+        /// compressed one does, Δv_n sized by the stretch.
         #[test]
         fn friction_never_increases_tangential_slip(
             compressed in 0.1..1.79f64,
@@ -828,8 +833,20 @@ mod tests {
             );
             prop_assert!(normal_error <= FRICTION_ROUNDING, "friction changed the normal velocity: {dw:?}");
 
-            // Stretched: no change, alone or in a substep against μ = 0.
+            // Stretched, with friction in tension: the same filter, by the stretch.
             let xb = n * stretched;
+            let tense = two_node_contact(&Params { friction_in_tension: true, ..params });
+            let dw = friction_change(&xa, &xb, &va, &vb, rest, &tense).unwrap_or_else(V3::zeros);
+            let after = tangential((vb + dw * 0.5) - (va - dw * 0.5));
+            let expected = (before - mu * tense.coeffs().friction_impulse * (stretched - rest)).max(0.0);
+            let slip_error = (after - expected).abs() / (1.0 + before);
+            prop_assert!(
+                slip_error <= FRICTION_ROUNDING,
+                "stretched to {stretched}: slip {before} -> {after}, not {expected} (error {slip_error:e})"
+            );
+            prop_assert!(dw.dot(&n).abs() / (1.0 + dw.norm()) <= FRICTION_ROUNDING, "normal velocity changed: {dw:?}");
+
+            // Stretched: no change, alone or in a substep against μ = 0.
             let dw = friction_change(&xa, &xb, &va, &vb, rest, &model);
             prop_assert_eq!(dw, None, "friction acts on a contact stretched to {}", stretched);
             let start = State { positions: vec![xa, xb], velocities: vec![va, vb] };
@@ -974,7 +991,7 @@ mod tests {
     }
 
     #[test]
-    fn friction_acts_only_on_compressed_contacts() {
+    fn friction_acts_on_compressed_contacts_and_on_stretched_ones_where_asked() {
         let model = two_node_contact(&Params::default());
         let (va, vb) = (V3::zeros(), V3::new(0.0, 3.0, 0.0));
         let apart = V3::new(2.0, 0.0, 0.0);
@@ -983,6 +1000,13 @@ mod tests {
         let dw = friction_change(&V3::zeros(), &pressed, &va, &vb, 1.8, &model).unwrap();
         // Δv_n = h k_c 0.8 / (m/2) = 53.3 > |w_t| / μ, so the slip is arrested.
         assert!((dw + vb).norm() < 1e-12, "{dw:?}");
+        // Stretched contacts have friction too where the parameters say so:
+        // Δv_n = h k_c 0.2 / (m/2) = 13.3, μ Δv_n = 4 > |w_t| = 3, arrested.
+        let tense = two_node_contact(&Params { friction_in_tension: true, ..Params::default() });
+        let dw = friction_change(&V3::zeros(), &apart, &va, &vb, 1.8, &tense).unwrap();
+        assert!((dw + vb).norm() < 1e-12, "{dw:?}");
+        // Held at its rest length, a contact has no friction either way.
+        assert!(friction_change(&V3::zeros(), &V3::new(1.8, 0.0, 0.0), &va, &vb, 1.8, &tense).is_none());
     }
 
     #[test]

@@ -282,6 +282,7 @@ impl<T: Real> CpuFabric<T> {
         self.gather_contacts(range.clone(), Some(&self.velocities), scratch);
         let c = *self.model.coeffs();
         let (zero, one) = (T::zero(), T::one());
+        let in_tension = self.model.params().friction_in_tension;
         let contacts = &self.contacts.live[range];
         let m = contacts.len();
         let (dx, dy, dz) = (&scratch.gap.x[..m], &scratch.gap.y[..m], &scratch.gap.z[..m]);
@@ -290,14 +291,14 @@ impl<T: Real> CpuFabric<T> {
         for j in 0..m {
             let rest = contacts[j].rest;
             let length = (dx[j] * dx[j] + dy[j] * dy[j] + dz[j] * dz[j]).sqrt();
-            let compressed = length < rest && length > zero;
-            let divisor = if compressed { length } else { one };
+            let strained = (length < rest || (in_tension && length > rest)) && length > zero;
+            let divisor = if strained { length } else { one };
             let n = [dx[j] / divisor, dy[j] / divisor, dz[j] / divisor];
             let normal = wx[j] * n[0] + wy[j] * n[1] + wz[j] * n[2];
             let wt = [wx[j] - n[0] * normal, wy[j] - n[1] * normal, wz[j] - n[2] * normal];
             let slip = (wt[0] * wt[0] + wt[1] * wt[1] + wt[2] * wt[2]).sqrt();
-            let (slip, keep) = if compressed && slip > zero { (slip, one) } else { (one, zero) };
-            let dv_normal = c.friction_impulse * (rest - length);
+            let (slip, keep) = if strained && slip > zero { (slip, one) } else { (one, zero) };
+            let dv_normal = c.friction_impulse * (rest - length).abs();
             let retention = (one - c.friction * dv_normal / slip).max(zero);
             let scale = (retention - one) * keep;
             (ox[j], oy[j], oz[j]) = (wt[0] * scale, wt[1] * scale, wt[2] * scale);

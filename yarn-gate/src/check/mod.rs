@@ -68,6 +68,10 @@ pub struct CheckArgs {
     /// 0.3]. The static solve is frictionless whatever it is.
     #[arg(long)]
     friction: Option<f64>,
+    /// Give stretched contacts friction too, by how far they are stretched
+    /// (`Params::friction_in_tension`; the dynamic path only).
+    #[arg(long)]
+    friction_in_tension: bool,
     /// Nodes a loop of the default preset's interlooped geometry: even, at
     /// least 10 (default 24, `Geometry::nodes_per_loop`).
     #[arg(long)]
@@ -102,6 +106,7 @@ impl CheckArgs {
         params.rest_curl = self.rest_curl.unwrap_or(params.rest_curl);
         params.self_contact_stiffness = self.self_contact.unwrap_or(params.self_contact_stiffness);
         params.friction = self.friction.unwrap_or(params.friction);
+        params.friction_in_tension |= self.friction_in_tension;
         let chart = self.pattern.chart(self.size)?;
         let solver = self.solver.as_deref();
         let backend = self.backend.as_deref().unwrap_or("serial");

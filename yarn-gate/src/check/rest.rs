@@ -166,6 +166,9 @@ pub struct RestReport {
     /// Friction coefficient μ (the dynamic path's; the static solve has
     /// none).
     pub friction: f64,
+    /// Whether stretched contacts have friction too
+    /// (`Params::friction_in_tension`).
+    pub friction_in_tension: bool,
     /// Whether the relaxation's rest was certified.
     pub certified: bool,
     /// The relaxation: its certificate, work and wall time.
@@ -400,6 +403,7 @@ fn run<S: Settle>(
         contacts: fabric.contacts().len(),
         self_contact: config.params.self_contact_stiffness,
         friction: config.params.friction,
+        friction_in_tension: config.params.friction_in_tension,
         certified: relaxed.certificate.certified,
         rest: relaxed.settled(),
         energy_initial: step::energy(&ruler, &start).total(),
@@ -495,7 +499,8 @@ impl RestReport {
         let path = match self.path {
             Path::Static => "frictionless static solve in f64".to_owned(),
             Path::Dynamic if self.friction > 0.0 => {
-                format!("dynamics with friction μ = {} on {}", self.friction, self.backend)
+                let tension = if self.friction_in_tension { ", stretched contacts too," } else { "" };
+                format!("dynamics with friction μ = {}{tension} on {}", self.friction, self.backend)
             }
             Path::Dynamic => format!("dynamics without friction on {}", self.backend),
         };
