@@ -119,8 +119,6 @@ impl ParetoArgs {
         Ok(Outcome::json_or(&report, self.json, || report.text()))
     }
 
-    /// Timed runs per backend: each substep on each problem, `repeats`
-    /// times.
     /// The model every problem starts from: the preset's, with
     /// `--self-contact` and `--friction` where given.
     fn params(&self) -> Params {
@@ -132,6 +130,8 @@ impl ParetoArgs {
         }
     }
 
+    /// Timed runs per backend: each substep on each problem, `repeats`
+    /// times.
     fn runs_per_backend(&self) -> usize {
         let variants = if self.self_contact.is_some_and(|k| k > 0.0) { 2 } else { 1 };
         Problem::ALL.len() * self.substeps.len() * self.repeats.max(1) * variants

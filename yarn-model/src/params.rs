@@ -29,8 +29,9 @@ pub struct Params {
     /// Contact tether stiffness k_c holding each crossing near its rest
     /// separation. Lower it for looser, slidier knit (default: 250).
     pub contact_stiffness: f64,
-    /// Coulomb friction coefficient μ at compressed contacts. 0 turns the
-    /// friction pass off (default: 0.3).
+    /// Coulomb friction coefficient μ at compressed contacts (and at
+    /// stretched ones with [`Params::friction_in_tension`]) and at
+    /// self-contacts. 0 turns the friction pass off (default: 0.3).
     pub friction: f64,
     /// Whether a stretched contact has friction too, sized by how far it
     /// is stretched as a compressed one is by how far it is compressed
