@@ -573,8 +573,10 @@ fn cli_pareto_reports_every_configuration_and_marks_one_recommended() {
 /// node moved in the last 25,000 (in yarn radii), how far the centroid
 /// moved in them, the mean velocity |Σv|/n (zero for a free patch whose
 /// forces are equal and opposite) and the largest speed, with the
-/// certificate's coast v_max/β in yarn radii; the last two scenes give stretched
-/// contacts friction too (`Params::friction_in_tension`). About two minutes:
+/// certificate's coast v_max/β in yarn radii; the last two scenes give
+/// stretched contacts friction too (`Params::friction_in_tension`). It
+/// first prints how many nodes have no contact, one, and so on. About two
+/// minutes:
 /// `cargo test --release -p yarn-gate --test gate -- --ignored --nocapture measure_the_free_patch_drift`.
 /// `DRIFT_SUBSTEPS=N` runs N substeps instead (a multiple of 100,000).
 #[test]
@@ -585,6 +587,14 @@ fn measure_the_free_patch_drift() {
         std::env::var("DRIFT_SUBSTEPS").map_or(1_000_000, |n| n.parse().expect("DRIFT_SUBSTEPS: a count"));
     let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
     let r = fabric.yarn_radius();
+    let mut per_node = vec![0usize; fabric.node_count()];
+    for c in fabric.contacts() {
+        per_node[c.a as usize] += 1;
+        per_node[c.b as usize] += 1;
+    }
+    let most = per_node.iter().copied().max().unwrap_or(0);
+    let by_count: Vec<usize> = (0..=most).map(|k| per_node.iter().filter(|&&n| n == k).count()).collect();
+    println!("{} nodes by how many contacts they have (0, 1, …): {by_count:?}", fabric.node_count());
     let scenes = [
         (1600.0, 0.3, false),
         (1600.0, 0.0, false),
