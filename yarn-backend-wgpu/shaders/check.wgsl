@@ -24,6 +24,10 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
         atomicOr(&status[0], DIVERGED);
         lists[SPEEDING] = 0u;
     }
+    if i == 0u && (p.flags & SELF_CONTACT) != 0u && lists[LATE] != 0u {
+        atomicOr(&status[0], LATE_REBUILD);
+        lists[LATE] = 0u;
+    }
     if i >= p.nodes {
         return;
     }

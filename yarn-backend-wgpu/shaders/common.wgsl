@@ -54,8 +54,10 @@ struct Params {
     rebuild_y: u32,
     // The longest segment the grid holds; longer ones are long (`grid.wgsl`).
     short: f32,
-    // Unused: `surfaces` starts on 16 bytes.
-    pad: u32,
+    // How far ahead a node's speed is projected when it decides whether to
+    // ask for a rebuild (`watch.wgsl`): none where every substep may
+    // rebuild, a few substeps where only some do.
+    lookahead: f32,
     surfaces: array<Surface, MAX_COLLIDERS>,
 }
 
@@ -113,6 +115,9 @@ const DIVERGED: u32 = 2u;
 // covers (`grid.wgsl`).
 const CROWDED: u32 = 4u;
 const STRETCHED: u32 = 8u;
+// The pushes ran on lists a node had moved half the skin from
+// (`lists[LATE]`): the batch runs again with a rebuild check every substep.
+const LATE_REBUILD: u32 = 16u;
 // `Params::flags` bit: self-contact is on.
 const SELF_CONTACT: u32 = 4u;
 // `Params::flags` bit: stretched contacts have friction too.

@@ -84,4 +84,4 @@ fn total_force(i: u32) -> vec3<f32> {
 // Fixed point runs no self-contact, so there is nothing to watch.
 fn watch_speed(i: u32, velocity: vec3<f32>) {}
 
-fn watch_move(i: u32, at: vec3<f32>) {}
+fn watch_move(i: u32, at: vec3<f32>, velocity: vec3<f32>) {}

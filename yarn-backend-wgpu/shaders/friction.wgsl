@@ -32,5 +32,5 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     let at = x[i].xyz + mul3(velocity, p.h);
     v_next[i] = vec4<f32>(velocity, 0.0);
     x_next[i] = vec4<f32>(at, 0.0);
-    watch_move(i, at);
+    watch_move(i, at, velocity);
 }

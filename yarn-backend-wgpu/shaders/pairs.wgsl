@@ -169,6 +169,12 @@ fn shared_friction(group: vec3<u32>, local: u32, groups: vec3<u32>) {
 fn forces(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
           @builtin(num_workgroups) groups: vec3<u32>) {
     let s = thread_index(group, local, groups);
+    // Lists a node has moved half the skin from may miss a pair within
+    // reach: the batch is put back and run again with a rebuild check
+    // every substep (`fabric.rs`).
+    if s == 0u && lists[FAR] != 0u {
+        lists[LATE] = 1u;
+    }
     if s < p.nodes {
         let end = segment_end(s);
         if end != NONE {

@@ -19,5 +19,5 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     let pin = pins[k];
     x[pin.node] = vec4<f32>(pin.goal, 0.0);
     v[pin.node] = vec4<f32>(0.0);
-    watch_move(pin.node, pin.goal);
+    watch_move(pin.node, pin.goal, vec3<f32>(0.0));
 }

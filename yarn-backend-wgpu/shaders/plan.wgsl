@@ -1,9 +1,12 @@
-// Once per substep with self-contact, before the list passes: whether the
-// candidate lists must be rebuilt, because some node has moved half the skin
-// since the last build (`lists[STALE]`, set by the move) or the host asked,
+// Before the list passes of a substep that may rebuild (every substep in
+// the browser, every `CADENCE`-th natively: `record.rs`): whether the
+// candidate lists must be rebuilt, because some node has moved, or soon
+// will have moved, half the skin since the last build (`lists[STALE]`, set
+// by the move) or the host asked,
 // as the workgroup counts of the indirect dispatches of `grid_insert.wgsl`
 // and `grid_find.wgsl`: all of them, or none. A rebuild starts a new
-// generation of bucket heads and an empty long list. One thread.
+// generation of bucket heads and an empty long list, and the lists it
+// makes hold every pair within reach again (`lists[FAR]`). One thread.
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read_write> lists: array<u32>;
@@ -20,5 +23,6 @@ fn main() {
     if stale {
         atomicAdd(&grid[GENERATION], 1u);
         atomicStore(&grid[LONG_COUNT], 0u);
+        lists[FAR] = 0u;
     }
 }

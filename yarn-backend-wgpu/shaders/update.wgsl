@@ -19,7 +19,7 @@ fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
         watch_speed(i, velocity);
         let at = x[i].xyz + mul3(velocity, p.h);
         out[i] = vec4<f32>(at, 0.0);
-        watch_move(i, at);
+        watch_move(i, at, velocity);
     }
 }
 

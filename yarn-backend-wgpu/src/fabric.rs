@@ -18,8 +18,8 @@ use crate::bindings::{
 };
 use crate::gpu::{Gpu, read_mapped};
 use crate::layout::{
-    CROWDED, DIVERGED, FRICTION_IN_TENSION, FRICTION_ON, FUSED_FMA, GpuChain, GpuParams, GpuPin, GpuSurface,
-    MAX_COLLIDERS, OVERFLOWED, SELF_CONTACT, STRETCHED,
+    CADENCE, CROWDED, DIVERGED, FRICTION_IN_TENSION, FRICTION_ON, FUSED_FMA, GpuChain, GpuParams, GpuPin, GpuSurface,
+    LATE_REBUILD, LOOKAHEAD, MAX_COLLIDERS, OVERFLOWED, SELF_CONTACT, STRETCHED,
 };
 use crate::record::Dispatch;
 use crate::timing::Timestamps;
@@ -51,6 +51,17 @@ pub(crate) struct GpuFabric {
     /// found more than the slots hold: the lists grow and the batch runs
     /// again.
     crowded: Option<u32>,
+    /// Whether a batch's pushes ran on lists some node had moved half the
+    /// skin from: it is put back and runs again with a rebuild check every
+    /// substep.
+    late: bool,
+    /// Batches that start before this substep check for a rebuild every
+    /// substep, since one not long before was late; and how long the next
+    /// late batch makes them do so.
+    pub(crate) every_substep_until: u64,
+    late_backoff: u64,
+    /// How many batches were late.
+    pub(crate) late_batches: u64,
     /// Whether the status stays on the GPU across batches until
     /// [`crate::Wgpu::read_raised`] takes it, instead of being waited for
     /// at the end of each: in the browser, where nothing may wait.
@@ -58,6 +69,10 @@ pub(crate) struct GpuFabric {
     /// Substeps since load when the deferred status was last taken.
     raised_since: u64,
 }
+
+/// Substeps a late batch ([`GpuFabric::late`]) has the batches after it
+/// check for a rebuild every substep, doubled by each late batch in a row.
+const FIRST_LATE_BACKOFF: u64 = 1_000;
 
 /// Slots per segment's candidate list at load: at rest a segment of the
 /// default fabric has at most 7 candidates, so this leaves room for a fold
@@ -165,6 +180,10 @@ impl GpuFabric {
             timestamps: None,
             slots: FIRST_SLOTS,
             crowded: None,
+            late: false,
+            every_substep_until: 0,
+            late_backoff: FIRST_LATE_BACKOFF,
+            late_batches: 0,
             deferred_status: cfg!(target_arch = "wasm32"),
             raised_since: 0,
         };
@@ -233,7 +252,9 @@ impl GpuFabric {
             rebuild_x,
             rebuild_y,
             short: shape.short,
-            _pad: 0,
+            // The browser cannot run a late batch again, so it checks for a
+            // rebuild every substep, as soon as a node has moved half the skin.
+            lookahead: if self.deferred_status { 0.0 } else { LOOKAHEAD * CADENCE as f32 * c.h },
             surfaces: gpu_surfaces,
         }
     }
@@ -390,7 +411,7 @@ impl GpuFabric {
     }
 
     pub(crate) fn compute_forces(&mut self, forces: &mut Vec<V3<f32>>) -> Result<(), BackendError> {
-        self.grow_when_crowded(|fabric| fabric.forces_once(forces))
+        self.run_again_when_put_back(|fabric| fabric.forces_once(forces))
     }
 
     /// [`Self::compute_forces`] with the lists as they are: rebuilt first,
@@ -404,7 +425,7 @@ impl GpuFabric {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            self.list_plan(self.parity, &mut |d| d.record(&mut pass));
+            self.list_plan(self.parity, true, &mut |d| d.record(&mut pass));
             let dispatch = |pipeline, threads| Dispatch {
                 pass: "",
                 stages: &[],
@@ -425,25 +446,41 @@ impl GpuFabric {
     }
 
     pub(crate) fn advance(&mut self, substeps: u64) -> Result<(), BackendError> {
-        self.grow_when_crowded(|fabric| advance_with_rollback(fabric, substeps))
+        self.run_again_when_put_back(|fabric| advance_with_rollback(fabric, substeps))
     }
 
-    /// Run `work`; when it fails because a segment had more self-contact
-    /// candidates than its list holds (the state already put back), double
-    /// the slots until they hold them, remake the lists and run it again.
+    /// Run `work`; when it fails (the state already put back) because a
+    /// segment had more self-contact candidates than its list holds,
+    /// double the slots until they hold them, remake the lists and run it
+    /// again; when it fails because it was late to rebuild the lists, run
+    /// it again with a rebuild check every substep.
     ///
     /// # Errors
     /// `work`'s, or [`BackendError::TooLarge`] naming the binding limit
     /// when lists that large do not fit the device.
-    fn grow_when_crowded<R>(
+    fn run_again_when_put_back<R>(
         &mut self,
         mut work: impl FnMut(&mut Self) -> Result<R, BackendError>,
     ) -> Result<R, BackendError> {
         loop {
             let result = work(self);
-            let Some(needed) = self.crowded.take() else { return result };
-            self.grow_lists(needed)?;
+            if let Some(needed) = self.crowded.take() {
+                self.grow_lists(needed)?;
+            } else if std::mem::take(&mut self.late) {
+                self.late_batches += 1;
+                self.every_substep_until = self.substeps + self.late_backoff;
+                self.late_backoff *= 2;
+            } else {
+                return result;
+            }
         }
+    }
+
+    /// How many substeps of the batch starting now may rebuild the
+    /// self-contact lists: one in every [`CADENCE`], or every one in the
+    /// browser (which cannot run a late batch again) and after a late one.
+    fn cadence(&self) -> u64 {
+        if self.deferred_status || self.substeps < self.every_substep_until { 1 } else { CADENCE }
     }
 
     /// Make the candidate lists hold at least `needed` candidates a
@@ -561,8 +598,17 @@ impl GpuFabric {
             .map_err(BackendError::Device)?;
         self.gpu.take_error().map_err(BackendError::Device)?;
         let raised = Raised::from_status(&status, first, end);
-        if raised.is_clear() {
+        let late = bytemuck::pod_read_unaligned::<u32>(&status[..4]) & LATE_REBUILD != 0;
+        if raised.is_clear() && !late {
             return Ok(());
+        }
+        // Whatever else a late batch raised may have come of its lists.
+        if late {
+            self.late = true;
+            return Err(BackendError::Device(format!(
+                "substeps {first}..{end} used self-contact lists a node had moved half the skin from; \
+                 they run again with a rebuild check every substep"
+            )));
         }
         if raised.overflowed {
             return Err(BackendError::Overflow { first, end, max_force: max_force() });
@@ -627,6 +673,7 @@ impl Rollback for GpuFabric {
         // which says for how many substeps the reseat pass is needed.
         let closing = self.model.close_reseats(substeps, |_, _| ());
         let fuse = self.fuses() && self.timestamps.is_none();
+        let cadence = self.cadence();
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         // A batch can fail part way: keep the state it started from.
         let [saved_x, saved_v] = &self.buffers.snapshot;
@@ -637,13 +684,14 @@ impl Rollback for GpuFabric {
             None => {
                 let mut pass = encoder.begin_compute_pass(&Default::default());
                 for s in 0..substeps {
-                    parity = self.substep_plan(parity, fuse, s < closing, &mut |d| d.record(&mut pass));
+                    parity =
+                        self.substep_plan(parity, fuse, s < closing, s % cadence == 0, &mut |d| d.record(&mut pass));
                 }
                 self.check_dispatch(parity).record(&mut pass);
             }
             Some(mut timestamps) => {
                 for s in 0..substeps {
-                    parity = self.substep_plan(parity, false, s < closing, &mut |d| {
+                    parity = self.substep_plan(parity, false, s < closing, s % cadence == 0, &mut |d| {
                         timestamps.record(&self.gpu, &mut encoder, d)
                     });
                 }
@@ -656,7 +704,11 @@ impl Rollback for GpuFabric {
         self.gpu.queue.submit([encoder.finish()]);
         self.parity = parity;
         self.substeps += substeps;
-        self.check_status(first, self.substeps)
+        self.check_status(first, self.substeps)?;
+        if cadence > 1 {
+            self.late_backoff = FIRST_LATE_BACKOFF;
+        }
+        Ok(())
     }
 
     fn restore(&mut self) -> Result<(), BackendError> {

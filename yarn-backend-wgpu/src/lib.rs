@@ -371,6 +371,15 @@ impl Backend for Wgpu {
         self.loaded.as_ref()?.self_contact_builds()
     }
 
+    /// As the trait says: natively, only one substep in
+    /// `CADENCE` (8) may rebuild the lists, and a batch that was late
+    /// runs again checking every substep; `None` in the browser, which
+    /// checks every substep.
+    fn late_list_reruns(&self) -> Option<u64> {
+        let loaded = self.loaded.as_ref()?;
+        (loaded.model.self_contact() && !loaded.deferred_status).then_some(loaded.late_batches)
+    }
+
     fn model(&self) -> Result<&Model<f32>, BackendError> {
         self.loaded.as_ref().map(|loaded| &loaded.model).ok_or(BackendError::NotLoaded)
     }

@@ -76,11 +76,16 @@ impl GpuFabric {
     }
 
     /// Hand the self-contact passes before a substep's forces, from `at`, to
-    /// `each`: whether to rebuild (`plan.wgsl`), the rebuild's two passes,
-    /// dispatched indirectly by its answer, and each segment's sums of its
-    /// pairs' pushes (`pairs.wgsl`). Nothing with self-contact off.
-    pub(crate) fn list_plan<'s>(&'s self, at: Parity, each: &mut impl FnMut(&Dispatch<'s>)) {
+    /// `each`: where `may_rebuild`, whether to rebuild (`plan.wgsl`) and the
+    /// rebuild's two passes, dispatched indirectly by its answer; then each
+    /// segment's sums of its pairs' pushes (`pairs.wgsl`). Nothing with
+    /// self-contact off.
+    pub(crate) fn list_plan<'s>(&'s self, at: Parity, may_rebuild: bool, each: &mut impl FnMut(&Dispatch<'s>)) {
         if !self.model.self_contact() {
+            return;
+        }
+        if !may_rebuild {
+            each(&self.pair_sums(at, false));
             return;
         }
         let (pipelines, groups) = (&self.gpu.pipelines, &self.groups);
@@ -117,14 +122,16 @@ impl GpuFabric {
     }
 
     /// Hand each dispatch of one substep from `at` to `each`, in order:
-    /// fused when `fuse`, otherwise the mode's forces pass, friction (when
-    /// on), pins (when any), and the reseat pass when `reseat`. Returns the
-    /// parity after the substep.
+    /// fused when `fuse`, otherwise the self-contact passes (the lists'
+    /// rebuild only where `may_rebuild`), the mode's forces pass, friction
+    /// (when on), pins (when any), and the reseat pass when `reseat`.
+    /// Returns the parity after the substep.
     pub(crate) fn substep_plan<'s>(
         &'s self,
         at: Parity,
         fuse: bool,
         reseat: bool,
+        may_rebuild: bool,
         each: &mut impl FnMut(&Dispatch<'s>),
     ) -> Parity {
         let pipelines = &self.gpu.pipelines;
@@ -144,7 +151,7 @@ impl GpuFabric {
             });
             next = Parity { x: 1 - at.x, v: 1 - at.v };
         } else {
-            self.list_plan(at, each);
+            self.list_plan(at, may_rebuild, each);
             let forces = forces_kernel(self.mode, pipelines, &self.buffers);
             let group = groups.step.at(at);
             if let Some(scatter) = forces.scatter {

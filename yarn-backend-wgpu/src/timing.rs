@@ -146,7 +146,7 @@ impl GpuFabric {
         let mut parts = Vec::new();
         {
             let mut plan: Vec<Dispatch<'_>> = Vec::new();
-            let after = self.substep_plan(self.parity, false, reseat, &mut |d| plan.push(*d));
+            let after = self.substep_plan(self.parity, false, reseat, true, &mut |d| plan.push(*d));
             plan.push(self.check_dispatch(after));
             let device = &self.gpu.device;
             let [saved_x, saved_v] = &self.buffers.snapshot;

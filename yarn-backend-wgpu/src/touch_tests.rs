@@ -89,7 +89,10 @@ fn the_gpu_lists_are_the_twins() {
 /// lists see the pairs the pin brought into reach, as `Serial<f32>`'s do.
 /// Regression: `pins.wgsl` did not watch its nodes, so the substep after a
 /// target was set ran on lists built before the pin moved its node, and a
-/// pair that pushed on the CPU added nothing here.
+/// pair that pushed on the CPU added nothing here. The pin moves its node
+/// at the end of the batch's first substep, which may rebuild, and the
+/// next may not: so the batch was late to rebuild, and ran again with a
+/// rebuild check every substep.
 #[test]
 fn a_node_pinned_far_away_is_watched_where_the_pin_puts_it() {
     let Some(gpu) = gpu() else { return };
@@ -128,6 +131,7 @@ fn a_node_pinned_far_away_is_watched_where_the_pin_puts_it() {
         b.advance(30).unwrap();
     }
     assert_eq!(backend.state().unwrap(), serial.state().unwrap());
+    assert!(backend.loaded.as_ref().unwrap().every_substep_until > 2, "the batch was not late");
 }
 
 /// A pinned node flung at 100 times the divergence speed, with

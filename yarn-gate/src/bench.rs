@@ -284,6 +284,11 @@ pub struct BenchRow {
     /// where self-contact is on and the backend counts them.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub builds_per_1000: Option<f64>,
+    /// Batches run again over the timed runs because they were late to
+    /// rebuild the self-contact lists ([`Backend::late_list_reruns`]),
+    /// where the backend may be.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub late_reruns: Option<u64>,
     /// Where the substeps' time went, pass by pass, when
     /// [`BenchConfig::stages`] asked.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -409,6 +414,7 @@ pub fn bench<B: Backend>(
         // Warm-up: caches, the thread pool, and the release transient.
         backend.advance(config.settle.max(substeps / 4 + 1))?;
         let builds_before = backend.self_contact_builds();
+        let reruns_before = backend.late_list_reruns();
         let mut times = Vec::with_capacity(config.repeats);
         for _ in 0..config.repeats {
             let start = Instant::now();
@@ -419,6 +425,7 @@ pub fn bench<B: Backend>(
         let builds_per_1000 = builds_before.zip(backend.self_contact_builds()).map(|(before, after)| {
             1000.0 * after.saturating_sub(before) as f64 / (config.repeats as u64 * substeps) as f64
         });
+        let late_reruns = reruns_before.zip(backend.late_list_reruns()).map(|(before, after)| after - before);
         let mut calls = Vec::with_capacity(stage_calls);
         for _ in 0..stage_calls {
             calls.push(backend.advance_timed(substeps)?);
@@ -448,6 +455,7 @@ pub fn bench<B: Backend>(
             substeps_per_s: substeps as f64 / median_time,
             self_contact: config.params.self_contact_stiffness,
             builds_per_1000,
+            late_reruns,
             stages: StageReport::median_of(&calls),
         });
     }
@@ -494,6 +502,9 @@ pub fn table(rows: &[BenchRow]) -> String {
             out += &format!(" k_sc={}", r.self_contact);
             if let Some(builds) = r.builds_per_1000 {
                 out += &format!(" builds/1000={builds:.1}");
+            }
+            if let Some(reruns) = r.late_reruns {
+                out += &format!(" late={reruns}");
             }
             out.push('\n');
         }
@@ -624,6 +635,7 @@ mod tests {
             substeps_per_s: 1.0,
             self_contact: 0.0,
             builds_per_1000: None,
+            late_reruns: None,
             stages,
         };
         assert_eq!(stages_table(&[row(None)]), "");

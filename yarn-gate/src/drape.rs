@@ -144,6 +144,10 @@ pub struct DrapeReport {
     /// How many times the self-contact candidate list was built, where
     /// the backend counts it.
     pub list_builds: Option<u64>,
+    /// How many batches ran again because they were late to rebuild the
+    /// list ([`Backend::late_list_reruns`]), where the backend may be.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub list_reruns: Option<u64>,
     /// Segment pairs in the candidate list at the end (within 2r plus the
     /// skin), and of them those within 2r, pushing.
     pub candidate_pairs: usize,
@@ -168,7 +172,7 @@ impl DrapeReport {
              substeps with a pair closer than {TOO_CLOSE_RADII} r: {}\n\
              lowest centreline above each collider: {}\n\
              energy at the end: {:.6e} (self-contact {:.3e}, collider {:.3e}); max speed {:.3e}\n\
-             self-contact list builds: {}; {} candidate pairs, {} within 2r at the end\n",
+             self-contact list builds: {}{}; {} candidate pairs, {} within 2r at the end\n",
             self.backend,
             self.nodes,
             self.substeps,
@@ -181,6 +185,7 @@ impl DrapeReport {
             self.collider_energy,
             self.max_speed,
             self.list_builds.map_or("not counted".into(), |b| b.to_string()),
+            self.list_reruns.map_or(String::new(), |r| format!(" ({r} batches run again, late to rebuild)")),
             self.candidate_pairs,
             self.touching_pairs,
         )
@@ -308,6 +313,7 @@ impl BackendWork for Drape<'_> {
             collider_energy: energy.collider,
             max_speed: state.max_speed(),
             list_builds: backend.self_contact_builds(),
+            list_reruns: backend.late_list_reruns(),
             candidate_pairs: candidates.pairs().len(),
             touching_pairs: watch.touching,
         };

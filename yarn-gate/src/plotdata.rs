@@ -387,6 +387,7 @@ mod tests {
             substeps_per_s: per_s,
             self_contact: 0.0,
             builds_per_1000: None,
+            late_reruns: None,
             stages: None,
         };
         let rows = [row("a", 512, 1e5), row("a", 2048, 2.5e4), row("b", 512, 2e5), row("b", 2048, 1e5)];

@@ -292,6 +292,15 @@ pub trait Backend {
         None
     }
 
+    /// How many batches of substeps were put back and run again since load
+    /// because they used self-contact lists that some node had moved half
+    /// the skin from (a backend that checks whether to rebuild the lists
+    /// only every few substeps), for reports; `None` where the backend
+    /// checks every substep.
+    fn late_list_reruns(&self) -> Option<u64> {
+        None
+    }
+
     /// The current state, freshly allocated.
     ///
     /// # Errors
