@@ -18,14 +18,15 @@
 // - `p.slots` candidate rows: the partner segments, sorted, slot k of
 //   every segment in row k.
 
-// `lists[STALE]`: some node has moved, or at its speed soon will have moved,
-// half the skin since the last build (`watch.wgsl`; read by `plan.wgsl`); `lists[SPEEDING]`: some node's
-// velocity after friction passed `p.max_speed` (set by the pass that moves
-// it, read by `check.wgsl`); `lists[FAR]`: some node has moved half the
-// skin since the last build, so the lists may miss a pair within reach
-// until the next (set by the move, cleared by the rebuild); `lists[LATE]`:
-// the pushes ran with `lists[FAR]` set (set by `pairs.wgsl`, read by
-// `check.wgsl`). Any thread may set any; all write the same 1.
+// `lists[STALE]`: some node has moved, or at its speed soon will have
+// moved, half the skin since the last build (set by the move, read by
+// `plan.wgsl`); `lists[SPEEDING]`: some node's velocity after friction
+// passed `p.max_speed` (set by the pass that moves it, read by
+// `check.wgsl`); `lists[FAR]`: some node has moved half the skin since the
+// last build, so the lists may miss a pair within reach until the next
+// (set by the move, cleared by the rebuild); `lists[LATE]`: the pushes ran
+// with `lists[FAR]` set (set by `pairs.wgsl`, read by `check.wgsl`). Any
+// thread may set any; all write the same 1.
 const STALE: u32 = 0u;
 const SPEEDING: u32 = 1u;
 const FAR: u32 = 2u;

@@ -4,10 +4,10 @@
 // without friction, and `pins.wgsl`.
 
 // After a node moves to `at` with `velocity` (`friction.wgsl`, gather's
-// move without friction, or a pin putting it at its target, still): ask
-// for a rebuild when it has moved, or at this speed would have moved within
-// `p.lookahead`, more than half the skin from its anchor; and flag the
-// lists as possibly short of a pair when it has moved more than that.
+// move without friction, or a pin putting it at its target with none):
+// ask for a rebuild when it has moved, or at this speed would have moved
+// within `p.lookahead`, more than half the skin from its anchor; and flag
+// the lists as possibly short of a pair when it has moved more than that.
 fn watch_move(i: u32, at: vec3<f32>, velocity: vec3<f32>) {
     if (p.flags & SELF_CONTACT) == 0u {
         return;
