@@ -220,18 +220,24 @@ pub fn straight_grips(fabric: &Fabric, positions: &[Vector3<f64>], axis: Axis, s
 /// the patch at `positions` instead would carry a rolled edge straight
 /// through the fabric it has rolled over.
 pub fn flat_between_grips(fabric: &Fabric, positions: &[Vector3<f64>], axis: Axis, separation: f64) -> State<f64> {
-    let (near, far) = axis.grips();
     let assembled = State::at_rest(fabric);
-    let direction = axis.direction(fabric);
-    let along = |nodes: &[u32]| {
-        nodes.iter().map(|&i| assembled.positions[i as usize].dot(&direction)).sum::<f64>() / nodes.len() as f64
-    };
-    let near_nodes = fabric.side_nodes(near);
-    let strain = separation / (along(&fabric.side_nodes(far)) - along(&near_nodes)) - 1.0;
-    let mut flat = stretched(&assembled, &near_nodes, direction, strain);
+    let strain = separation / assembled_separation(fabric, axis) - 1.0;
+    let mut flat = stretched(&assembled, &fabric.side_nodes(axis.grips().0), axis.direction(fabric), strain);
     let (rotation, translation) = interior_frame(fabric, positions);
     flat.positions.iter_mut().for_each(|p| *p = rotation * *p + translation);
     flat
+}
+
+/// How far apart the centroids of the grips along `axis` are, along it, in
+/// the assembled patch.
+pub fn assembled_separation(fabric: &Fabric, axis: Axis) -> f64 {
+    let (near, far) = axis.grips();
+    let (assembled, direction) = (fabric.positions(), axis.direction(fabric));
+    let along = |side| {
+        let nodes = fabric.side_nodes(side);
+        nodes.iter().map(|&i| assembled[i as usize].dot(&direction)).sum::<f64>() / nodes.len() as f64
+    };
+    along(far) - along(near)
 }
 
 /// The direction of `axis` in the frame the patch at `positions` sits in.

@@ -6,8 +6,9 @@
 //!    (SPEC §7: + toward the technical face), and the resting width and
 //!    height as arc lengths ([`metrics::extent`]).
 //! 3. Probe the stiffness along each axis: clamp the two gripped edges
-//!    straight ([`metrics::straight_grips`]) at the resting separation,
-//!    hold to a certified rest, pull the far grip out by
+//!    straight ([`metrics::straight_grips`]) at the resting separation
+//!    (with self-contact, easing the assembled patch out to them first:
+//!    `eased_out`), hold to a certified rest, pull the far grip out by
 //!    [`PULL_STRAIN`], hold to a certified rest again, and read the change
 //!    of the far grip's force along the axis.
 //! 4. Double: run every relaxation and hold on for as much work again as
@@ -23,7 +24,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 use yarn_model::statics::StaticOptions;
 use yarn_model::{Backend, Model, Params, State, V3, step};
-use yarn_topology::{Chart, Fabric, Geometry};
+use yarn_topology::{Chart, Fabric, Geometry, Pin};
 
 use super::{Criterion, PULL_STRAIN, criteria_table};
 use crate::GateError;
@@ -250,6 +251,67 @@ fn grip_force(model: &Model<f64>, fabric: &Fabric, state: &State<f64>, axis: Axi
     fabric.side_nodes(axis.grips().1).iter().map(|&i| forces[i as usize]).sum()
 }
 
+/// The most `eased_out` stretches the patch at a time on its way out to
+/// a hold's grips.
+const EASE_STRAIN: f64 = 0.05;
+
+/// Each step of that way is settled for this fraction of the hold's budget.
+const EASE_SHARE: u64 = 20;
+
+/// `from` stretched affinely along `direction` about the near grip of
+/// `axis` by `strain`, with `grips` put in place, at rest.
+fn hold_start(
+    fabric: &Fabric,
+    axis: Axis,
+    direction: Vector3<f64>,
+    from: &State<f64>,
+    grips: &[Pin],
+    strain: f64,
+) -> State<f64> {
+    let mut state = metrics::stretched(from, &fabric.side_nodes(axis.grips().0), direction, strain);
+    for pin in grips {
+        state.positions[pin.node as usize] = pin.target;
+    }
+    state
+}
+
+/// Where a hold with self-contact starts: edges that rolled over the
+/// fabric and are put straight at once pass through it
+/// (`Model::check_apart` refuses that start) or, where they clear it, are
+/// torn from the yarn beside them (at μ = 1 with friction in tension the
+/// first substep of such a start diverged). So the hold starts from the
+/// assembled patch, clear of itself, in the frame of the patch at `at`,
+/// between grips at its own separation, and eases it out to `separation`
+/// in steps of at most [`EASE_STRAIN`], each stretched affinely from the
+/// last and settled for `share` units of work (`progress` hears each
+/// step's). The rest returned counts the whole way's work and time.
+fn eased_out<S: Settle>(
+    settler: &mut S,
+    fabric: &Fabric,
+    at: &[V3<f64>],
+    axis: Axis,
+    separation: f64,
+    share: u64,
+    progress: &mut dyn FnMut(u64),
+) -> Result<Rest, GateError> {
+    let direction = metrics::axis_in_frame(fabric, at, axis);
+    let own = metrics::assembled_separation(fabric, axis);
+    let steps = ((separation / own - 1.0).abs() / EASE_STRAIN).ceil().max(1.0) as u32;
+    let (mut state, mut from, mut work, mut seconds) =
+        (metrics::flat_between_grips(fabric, at, axis, own), own, 0, 0.0);
+    let mut last = None;
+    for step in 1..=steps {
+        let to = own + (separation - own) * f64::from(step) / f64::from(steps);
+        let grips = metrics::straight_grips(fabric, at, axis, to);
+        let stretched = hold_start(fabric, axis, direction, &state, &grips, to / from - 1.0);
+        let rest = settler.settle(&stretched, &grips, share, progress)?;
+        (state, from, work, seconds) = (rest.state.clone(), to, work + rest.work, seconds + rest.seconds);
+        last = Some(rest);
+    }
+    let last = last.expect("at least one step");
+    Ok(Rest { work, seconds, ..last })
+}
+
 /// The two holds of one probe, each settled from the last.
 struct Probe {
     axis: Axis,
@@ -276,29 +338,24 @@ impl Probe {
     ) -> Result<Self, GateError> {
         let at = &relaxed.state.positions;
         let direction = metrics::axis_in_frame(fabric, at, axis);
-        let (label0, label1) = match axis {
-            Axis::Course => ("hold course", "pull course"),
-            Axis::Wale => ("hold wale", "pull wale"),
+        let (label0, label1, easing) = match axis {
+            Axis::Course => ("hold course", "pull course", "ease course"),
+            Axis::Wale => ("hold wale", "pull wale", "ease wale"),
         };
         // Each hold starts from the state before it, with its grips put in
         // place; the strained one also stretched affinely along the axis,
         // so no node starts far from where the pull will leave it.
-        let start = |from: &State<f64>, grips: &[yarn_topology::Pin], strain: f64| {
-            let mut state = metrics::stretched(from, &fabric.side_nodes(axis.grips().0), direction, strain);
-            for pin in grips {
-                state.positions[pin.node as usize] = pin.target;
-            }
-            state
-        };
+        let start =
+            |from: &State<f64>, grips: &[Pin], strain: f64| hold_start(fabric, axis, direction, from, grips, strain);
         let grips = metrics::straight_grips(fabric, at, axis, separation);
-        // With self-contact, edges that rolled over the fabric and are put
-        // straight pass through it (`Model::check_apart` refuses that
-        // start); the hold then starts flat between its grips.
-        let mut first = start(&relaxed.state, &grips, 0.0);
-        if model.check_apart(&first.positions).is_err() {
-            first = start(&metrics::flat_between_grips(fabric, at, axis, separation), &grips, 0.0);
-        }
-        let unstrained = settler.settle(&first, &grips, budget, &mut |w| progress(label0, w, budget))?;
+        let unstrained = if model.self_contact() {
+            let share = budget / EASE_SHARE;
+            let eased = eased_out(settler, fabric, at, axis, separation, share, &mut |w| progress(easing, w, share))?;
+            let hold = settler.settle(&eased.state, &grips, budget, &mut |w| progress(label0, w, budget))?;
+            Rest { work: eased.work + hold.work, seconds: eased.seconds + hold.seconds, ..hold }
+        } else {
+            settler.settle(&start(&relaxed.state, &grips, 0.0), &grips, budget, &mut |w| progress(label0, w, budget))?
+        };
         let grips = metrics::straight_grips(fabric, at, axis, separation * (1.0 + PULL_STRAIN));
         let strained = settler.settle(&start(&unstrained.state, &grips, PULL_STRAIN), &grips, budget, &mut |w| {
             progress(label1, w, budget);
@@ -577,6 +634,43 @@ mod tests {
         }
         assert_eq!((statics.path, dynamics.path), (Path::Static, Path::Dynamic));
         assert_eq!((statics.unit, dynamics.unit), ("force evaluations", "substeps"));
+    }
+
+    /// With self-contact the holds ease the assembled patch out to their
+    /// grips: where the 4x4 patch's rolled edges, put straight at once, pass
+    /// through the fabric (refused) or pull hard on the yarn beside them,
+    /// the eased start is clear of itself, pulls on no free node a tenth as
+    /// hard, and took work.
+    #[test]
+    fn with_self_contact_a_hold_eases_the_assembled_patch_out_to_its_grips() {
+        let params = Params { self_contact_stiffness: 1600.0, ..Params::default() };
+        let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
+        let model = Model::<f64>::new(&fabric, &params).unwrap();
+        let mut settler = Statics::new(&fabric, &params, StaticOptions::default()).unwrap();
+        let relaxed = settler.settle(&State::at_rest(&fabric), &[], super::super::STATIC_BUDGET, &mut |_| {}).unwrap();
+        assert!(relaxed.certificate.certified, "{:?}", relaxed.certificate);
+        let at = &relaxed.state.positions;
+        let extent = metrics::extent(&fabric, at).unwrap();
+        let largest_free_force = |state: &State<f64>, grips: &[Pin]| {
+            let mut forces = Vec::new();
+            step::accumulate_forces(&model, &state.positions, &mut forces);
+            let pinned: Vec<usize> = grips.iter().map(|pin| pin.node as usize).collect();
+            (0..forces.len()).filter(|i| !pinned.contains(i)).map(|i| forces[i].norm()).fold(0.0, f64::max)
+        };
+        let mut refused = 0;
+        for (axis, separation) in [(Axis::Course, extent.width), (Axis::Wale, extent.height)] {
+            let grips = metrics::straight_grips(&fabric, at, axis, separation);
+            let direction = metrics::axis_in_frame(&fabric, at, axis);
+            let straight = hold_start(&fabric, axis, direction, &relaxed.state, &grips, 0.0);
+            refused += usize::from(model.check_apart(&straight.positions).is_err());
+            let eased = eased_out(&mut settler, &fabric, at, axis, separation, 1_000, &mut |_| {}).unwrap();
+            assert!(model.check_apart(&eased.state.positions).is_ok(), "{axis:?}: the eased start is through itself");
+            assert!(eased.work > 0 && eased.pins == grips, "{axis:?}: {} work, pins {:?}", eased.work, eased.pins);
+            let (pull, straight_pull) =
+                (largest_free_force(&eased.state, &grips), largest_free_force(&straight, &grips));
+            assert!(10.0 * pull < straight_pull, "{axis:?}: eased {pull}, straight at once {straight_pull}");
+        }
+        assert!(refused > 0, "neither axis's straight start passes through the fabric");
     }
 
     /// The gate builds its patch from the chart it is given: a seed chart's
