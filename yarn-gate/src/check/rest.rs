@@ -281,7 +281,8 @@ fn hold_start(
 /// torn from the yarn beside them (at μ = 1 with friction in tension the
 /// first substep of such a start diverged). So the hold starts from the
 /// assembled patch, clear of itself, in the frame of the patch at `at`,
-/// between grips at its own separation, and eases it out to `separation`
+/// between grips at its own separation, and eases it out along `direction`
+/// (`axis` in that frame) to `separation`
 /// in steps of at most [`EASE_STRAIN`], each stretched affinely from the
 /// last and settled for `share` units of work (`progress` hears each
 /// step's). The rest returned counts the whole way's work and time.
@@ -289,27 +290,31 @@ fn eased_out<S: Settle>(
     settler: &mut S,
     fabric: &Fabric,
     at: &[V3<f64>],
-    axis: Axis,
+    (axis, direction): (Axis, Vector3<f64>),
     separation: f64,
     share: u64,
     progress: &mut dyn FnMut(u64),
 ) -> Result<Rest, GateError> {
-    let direction = metrics::axis_in_frame(fabric, at, axis);
     let own = metrics::assembled_separation(fabric, axis);
     let steps = ((separation / own - 1.0).abs() / EASE_STRAIN).ceil().max(1.0) as u32;
-    let (mut state, mut from, mut work, mut seconds) =
-        (metrics::flat_between_grips(fabric, at, axis, own), own, 0, 0.0);
-    let mut last = None;
+    let flat = metrics::flat_between_grips(fabric, at, axis, own);
+    let (mut from, mut work, mut seconds) = (own, 0, 0.0);
+    let mut eased: Option<Rest> = None;
     for step in 1..=steps {
         let to = own + (separation - own) * f64::from(step) / f64::from(steps);
         let grips = metrics::straight_grips(fabric, at, axis, to);
-        let stretched = hold_start(fabric, axis, direction, &state, &grips, to / from - 1.0);
-        let rest = settler.settle(&stretched, &grips, share, progress)?;
-        (state, from, work, seconds) = (rest.state.clone(), to, work + rest.work, seconds + rest.seconds);
-        last = Some(rest);
+        let last = eased.as_ref().map_or(&flat, |rest| &rest.state);
+        let rest = settler.settle(
+            &hold_start(fabric, axis, direction, last, &grips, to / from - 1.0),
+            &grips,
+            share,
+            progress,
+        )?;
+        (from, work, seconds) = (to, work + rest.work, seconds + rest.seconds);
+        eased = Some(rest);
     }
-    let last = last.expect("at least one step");
-    Ok(Rest { work, seconds, ..last })
+    // `steps` is at least one, so the way has a last step.
+    Ok(Rest { work, seconds, ..eased.expect("at least one step") })
 }
 
 /// The two holds of one probe, each settled from the last.
@@ -350,7 +355,9 @@ impl Probe {
         let grips = metrics::straight_grips(fabric, at, axis, separation);
         let unstrained = if model.self_contact() {
             let share = budget / EASE_SHARE;
-            let eased = eased_out(settler, fabric, at, axis, separation, share, &mut |w| progress(easing, w, share))?;
+            let eased = eased_out(settler, fabric, at, (axis, direction), separation, share, &mut |w| {
+                progress(easing, w, share);
+            })?;
             let hold = settler.settle(&eased.state, &grips, budget, &mut |w| progress(label0, w, budget))?;
             Rest { work: eased.work + hold.work, seconds: eased.seconds + hold.seconds, ..hold }
         } else {
@@ -663,7 +670,8 @@ mod tests {
             let direction = metrics::axis_in_frame(&fabric, at, axis);
             let straight = hold_start(&fabric, axis, direction, &relaxed.state, &grips, 0.0);
             refused += usize::from(model.check_apart(&straight.positions).is_err());
-            let eased = eased_out(&mut settler, &fabric, at, axis, separation, 1_000, &mut |_| {}).unwrap();
+            let eased =
+                eased_out(&mut settler, &fabric, at, (axis, direction), separation, 1_000, &mut |_| {}).unwrap();
             assert!(model.check_apart(&eased.state.positions).is_ok(), "{axis:?}: the eased start is through itself");
             assert!(eased.work > 0 && eased.pins == grips, "{axis:?}: {} work, pins {:?}", eased.work, eased.pins);
             let (pull, straight_pull) =
