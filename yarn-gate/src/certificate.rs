@@ -30,8 +30,24 @@
 //! The thresholds are ten times finer than the doubling test's 0.05 r
 //! ([`DOUBLING_CURL`]), so a certified rest leaves the gate's figures to
 //! move by less than the doubling test allows.
+//!
+//! Friction holds a patch where forces are left, far from any minimum,
+//! and a frictionless criterion refuses it. So a run on the dynamics, which
+//! watched its state over a [`Window`] of its work, may instead be
+//! certified **still**:
+//!
+//! - **Creep**: the farthest any node moved over the window, scaled to as
+//!   much work again as the run took (what it would move over a doubling at
+//!   that rate), is below [`REST_DISPLACEMENT`] yarn radii.
+//! - **Speed**: as above.
+//!
+//! Stillness is asked of the motion rather than of the forces: friction
+//! filters the slip between a contact's two nodes, not where they are, and
+//! the yarn between contacts has none, so no test of each node's force
+//! against what friction at it could hold tells a held patch from one that
+//! drifts with its contacts stuck.
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 use yarn_model::statics::LinearStiffness;
 use yarn_model::{Model, State, V3, step};
@@ -91,14 +107,41 @@ pub struct Certificate {
     /// counts in `displacement` as its residual's largest node force over
     /// the softest stiffness met.
     pub newton_converged: bool,
-    /// Whether every criterion holds.
+    /// The farthest any node moved over the [`Window`], scaled to as much
+    /// work again as the run took, in yarn radii; `None` without a window.
+    pub creep: Option<f64>,
+    /// Whether every frictionless criterion holds.
+    pub at_minimum: bool,
+    /// Whether the state kept still over its window: creep and coast
+    /// below their thresholds.
+    pub still: bool,
+    /// Whether the state is at rest: every frictionless criterion holds,
+    /// or it kept still.
     pub certified: bool,
+}
+
+/// The last stretch of a run: where its nodes were `work` units of work
+/// before the state certified, with `total` units done in all.
+#[derive(Debug, Clone, Copy)]
+pub struct Window<'a> {
+    /// The positions at the window's start.
+    pub since: &'a [V3<f64>],
+    /// The work over the window.
+    pub work: u64,
+    /// The run's work in all, the window's included.
+    pub total: u64,
 }
 
 impl Certificate {
     /// The certificate of `state` under `model` (its pins held), lengths
     /// in units of the yarn radius `r`.
     pub fn of(model: &Model<f64>, state: &State<f64>, r: f64) -> Self {
+        Self::over(model, state, r, None)
+    }
+
+    /// [`Certificate::of`], and with a `window` also whether the state kept
+    /// still over it (the module's second test).
+    pub fn over(model: &Model<f64>, state: &State<f64>, r: f64, window: Option<Window>) -> Self {
         let coast = state.max_speed() / model.params().damping.max(f64::MIN_POSITIVE) / r;
         let free = free_nodes(model);
         let mut forces = Vec::new();
@@ -109,6 +152,10 @@ impl Certificate {
         let newton = newton_step(model, &state.positions, &forces, &free);
         let displacement = (newton.step.iter().map(|d| d.norm()).fold(0.0, f64::max) + newton.unresolved) / r;
         let energy_left = 0.5 * dot(&forces, &newton.step) / scale.max(f64::MIN_POSITIVE);
+        let creep = window.map(|w| creep(&state.positions, &w, &free) / r);
+        let still = creep.is_some_and(|creep| creep < REST_DISPLACEMENT) && coast < REST_COAST;
+        let at_minimum =
+            !newton.saddle && displacement < REST_DISPLACEMENT && energy_left < REST_ENERGY && coast < REST_COAST;
         Self {
             displacement,
             energy_left,
@@ -118,20 +165,43 @@ impl Certificate {
             saddle: newton.saddle,
             hessian_products: newton.products,
             newton_converged: newton.converged,
-            certified: !newton.saddle
-                && displacement < REST_DISPLACEMENT
-                && energy_left < REST_ENERGY
-                && coast < REST_COAST,
+            creep,
+            at_minimum,
+            still,
+            certified: at_minimum || still,
         }
     }
 
     /// One line for the table.
     pub fn describe(&self) -> String {
-        if self.saddle {
-            return format!("saddle (negative curvature), max force {:.1e}", self.max_force);
+        let at_minimum = if self.saddle {
+            format!("saddle (negative curvature), max force {:.1e}", self.max_force)
+        } else {
+            format!(
+                "step {:.1e} r, energy left {:.1e}, coast {:.1e} r",
+                self.displacement, self.energy_left, self.coast
+            )
+        };
+        match self.creep {
+            Some(creep) if self.still && !self.at_minimum => {
+                format!("still: creep {creep:.1e} r, coast {:.1e} r", self.coast)
+            }
+            Some(creep) if !self.certified => format!("{at_minimum}; creep {creep:.1e} r"),
+            _ => at_minimum,
         }
-        format!("step {:.1e} r, energy left {:.1e}, coast {:.1e} r", self.displacement, self.energy_left, self.coast)
     }
+}
+
+/// The farthest any node moved from `window.since` to `x`, scaled to as
+/// much work again as the run took. A patch no pin holds may drift and
+/// turn as a whole, which moves none of its figures: that motion (the best
+/// rigid fit) is left out.
+fn creep(x: &[V3<f64>], window: &Window, free: &[bool]) -> f64 {
+    let pairs: Vec<_> = window.since.iter().copied().zip(x.iter().copied()).collect();
+    let (rotation, translation) =
+        if free.iter().all(|f| *f) { crate::metrics::rigid_fit(&pairs) } else { (Matrix3::identity(), V3::zeros()) };
+    let farthest = pairs.iter().map(|(x0, x)| (x - (rotation * x0 + translation)).norm()).fold(0.0, f64::max);
+    farthest * window.total as f64 / window.work.max(1) as f64
 }
 
 /// Which nodes are free (not pinned).
@@ -280,7 +350,7 @@ fn newton_step(model: &Model<f64>, x: &[V3<f64>], forces: &[V3<f64>], free: &[bo
 mod tests {
     use yarn_backend_cpu::Serial;
     use yarn_model::{Backend, Params};
-    use yarn_topology::{Chart, Fabric, Geometry};
+    use yarn_topology::{Chart, Fabric, Geometry, Pin};
 
     use super::*;
 
@@ -318,6 +388,37 @@ mod tests {
         let residual = hd.iter().zip(&forces).map(|(a, b)| (a - b).norm_squared()).sum::<f64>().sqrt();
         let size = dot(&forces, &forces).sqrt();
         assert!(residual < 1e-2 * size, "|H d − F| = {residual:e} against |F| = {size:e}");
+    }
+
+    /// A state the frictionless criteria refuse certifies as still over a
+    /// window in which it did not move, whatever rigid motion a free patch
+    /// made meanwhile; a node that crept is scaled up to a doubling's worth
+    /// and refuses it; and with a pin, a rigid motion is motion.
+    #[test]
+    fn a_window_without_motion_certifies_a_state_still() {
+        let fabric = patch(4);
+        let mut state = State::at_rest(&fabric);
+        state.positions.iter_mut().enumerate().for_each(|(i, x)| x.y += 0.02 * (i as f64 * 0.37).sin());
+        let r = fabric.yarn_radius();
+        let model = Model::<f64>::new(&fabric, &Params::paper()).unwrap();
+        let turn = nalgebra::Rotation3::from_euler_angles(0.3, -0.2, 0.1);
+        let moved: Vec<V3<f64>> = state.positions.iter().map(|x| turn * x + V3::new(4.0, -1.0, 2.0)).collect();
+        let window = Window { since: &moved, work: 2_000, total: 20_000 };
+        assert!(!Certificate::of(&model, &state, r).certified);
+        let still = Certificate::over(&model, &state, r, Some(window));
+        assert!(still.certified && still.still && !still.at_minimum, "{still:?}");
+        assert!(still.creep.unwrap() < 1e-9, "{still:?}");
+        // One node 0.002 r away over a tenth of the run: 0.02 r over a
+        // doubling, less the little of it the rigid fit takes up.
+        let mut crept = state.positions.clone();
+        crept[7].x += 0.002 * r;
+        let creeping = Certificate::over(&model, &state, r, Some(Window { since: &crept, ..window }));
+        let creep = creeping.creep.unwrap();
+        assert!(!creeping.certified && creep > 0.019 && creep < 0.02 + 1e-9, "{creeping:?}");
+        let mut pinned = model.clone();
+        pinned.set_pins(&[Pin { node: 0, target: state.positions[0] }]).unwrap();
+        let held = Certificate::over(&pinned, &state, r, Some(window));
+        assert!(!held.still && held.creep.unwrap() > 1.0, "{held:?}");
     }
 
     /// The trap of a speed test: a patch stopped mid-relaxation (its

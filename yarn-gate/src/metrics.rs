@@ -179,6 +179,13 @@ fn interior_frame(fabric: &Fabric, positions: &[Vector3<f64>]) -> (Matrix3<f64>,
         .filter(|(_, b)| b.is_interior())
         .map(|((a, p), _)| (*a, *p))
         .collect();
+    rigid_fit(&pairs)
+}
+
+/// The rigid motion (rotation, then translation) that best maps each
+/// pair's first point onto its second, in the least-squares sense
+/// (Kabsch).
+pub(crate) fn rigid_fit(pairs: &[(Vector3<f64>, Vector3<f64>)]) -> (Matrix3<f64>, Vector3<f64>) {
     let count = pairs.len().max(1) as f64;
     let (from, to) = pairs.iter().fold((Vector3::zeros(), Vector3::zeros()), |(f, t), (a, p)| (f + a, t + p));
     let (from, to) = (from / count, to / count);

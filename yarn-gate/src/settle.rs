@@ -17,11 +17,11 @@ use std::time::Instant;
 
 use serde::Serialize;
 use yarn_model::statics::{self, StaticOptions};
-use yarn_model::{Backend, Model, Params, State};
+use yarn_model::{Backend, Model, Params, State, V3};
 use yarn_topology::{Fabric, Pin};
 
 use crate::GateError;
-use crate::certificate::{Certificate, REST_COAST};
+use crate::certificate::{Certificate, REST_COAST, Window};
 
 /// A state some path brought toward rest, with its certificate.
 #[derive(Debug, Clone, PartialEq)]
@@ -186,10 +186,14 @@ impl<'f, B: Backend> Dynamics<'f, B> {
         Ok(Self { backend, fabric, damping: params.damping })
     }
 
-    /// Advance up to `budget` substeps from the backend's state, stopping
-    /// early at a certified rest when `stop_at_rest`.
+    /// Advance up to `budget` substeps from the backend's state, after
+    /// `before` substeps already run toward this rest, stopping early at a
+    /// certified rest when `stop_at_rest`. A certificate's window
+    /// ([`Window`]) runs from the last look at a rest that did not
+    /// certify, or without stopping from a tenth of `budget` before its end.
     fn advance(
         &mut self,
+        before: u64,
         budget: u64,
         stop_at_rest: bool,
         progress: &mut dyn FnMut(u64),
@@ -197,16 +201,22 @@ impl<'f, B: Backend> Dynamics<'f, B> {
         let model = self.backend.model()?.in_f64(self.fabric)?;
         let radius = self.fabric.yarn_radius();
         let (mut done, mut next_check) = (0, 0);
+        let last_window = ((budget as f64 * CHECK_GROWTH) as u64).max(CHUNK);
+        let mut looked: Option<(Vec<V3<f64>>, u64)> = None;
         loop {
             let state = self.backend.state()?.cast::<f64>();
             let coasting = state.max_speed() / self.damping.max(f64::MIN_POSITIVE) / radius;
             let last = done >= budget;
             if last || (stop_at_rest && coasting < REST_COAST && done >= next_check) {
-                let certificate = Certificate::of(&model, &state, radius);
+                let window = looked.as_ref().map(|(since, at)| Window { since, work: done - at, total: before + done });
+                let certificate = Certificate::over(&model, &state, radius, window);
                 if last || certificate.certified {
                     return Ok((state, certificate, done));
                 }
                 next_check = done + ((done as f64 * CHECK_GROWTH) as u64).max(CHUNK);
+                looked = Some((state.positions, done));
+            } else if !stop_at_rest && looked.is_none() && done + last_window >= budget {
+                looked = Some((state.positions, done));
             }
             let chunk = CHUNK.min(budget - done);
             self.backend.advance(chunk)?;
@@ -235,7 +245,7 @@ impl<B: Backend> Settle for Dynamics<'_, B> {
         let clock = Instant::now();
         self.backend.set_pins(pins)?;
         self.backend.write_state(&start.cast())?;
-        let (state, certificate, work) = self.advance(budget, true, progress)?;
+        let (state, certificate, work) = self.advance(0, budget, true, progress)?;
         Ok(Rest { state, pins: pins.to_vec(), certificate, work, seconds: clock.elapsed().as_secs_f64() })
     }
 
@@ -243,7 +253,7 @@ impl<B: Backend> Settle for Dynamics<'_, B> {
         let clock = Instant::now();
         self.backend.set_pins(&rest.pins)?;
         self.backend.write_state(&rest.state.cast())?;
-        let (state, certificate, done) = self.advance(work, false, progress)?;
+        let (state, certificate, done) = self.advance(rest.work, work, false, progress)?;
         let seconds = rest.seconds + clock.elapsed().as_secs_f64();
         Ok(Rest { state, pins: rest.pins.clone(), certificate, work: rest.work + done, seconds })
     }
