@@ -17,8 +17,9 @@
 //!   ([`yarn_model::statics::LinearStiffness`]); H times a vector
 //!   is a central difference of the exact force. If CG meets a direction
 //!   of negative curvature the state is a saddle, not a rest. CG stops at
-//!   a 1e-2 reduction or 300 iterations; what it leaves unsolved counts
-//!   as its residual force over the softest stiffness it met (|F|/k, for
+//!   a 1e-2 reduction, 300 iterations or a direction too soft to tell from
+//!   a free one; what it leaves unsolved counts as its residual force over
+//!   the softest stiffness it met, at least [`NULL_CURVATURE`] (|F|/k, for
 //!   the part of the force it did not resolve).
 //! - **Energy**: the energy that step would still release, ½ F·d, is
 //!   below [`REST_ENERGY`] of the fabric's bending scale, ½ k_b Σ θ0²: the
@@ -76,9 +77,9 @@ const CG_ITERATIONS: usize = 300;
 /// [`REST_DISPLACEMENT`].
 const CG_REDUCTION: f64 = 1e-2;
 /// A Rayleigh quotient pᵀHp / pᵀp below this in size is a mode the
-/// difference cannot tell from a free one: CG stops there, and only one
-/// below minus this is a saddle. The force's rounding in the difference
-/// is about 1e-7 of it.
+/// difference cannot tell from a free one: CG stops there, the force left
+/// counting over this stiffness, and only one below minus this is a
+/// saddle. The force's rounding in the difference is about 1e-7 of it.
 const NULL_CURVATURE: f64 = 1e-6;
 /// The central difference's step, as the largest node displacement, in
 /// model units.
@@ -326,9 +327,9 @@ fn newton_step(model: &Model<f64>, x: &[V3<f64>], forces: &[V3<f64>], free: &[bo
             break;
         }
         if rayleigh < NULL_CURVATURE {
-            // A mode too soft to tell from the difference's rounding: what
-            // force is left lies along modes the patch does not resist.
-            converged = true;
+            // A mode too soft to tell from the difference's rounding: the
+            // force left is not resolved, and counts below over this
+            // stiffness at most (a free yarn under a load is no rest).
             break;
         }
         let alpha = rz / curvature;
@@ -342,7 +343,7 @@ fn newton_step(model: &Model<f64>, x: &[V3<f64>], forces: &[V3<f64>], free: &[bo
     }
     let converged = converged || rz.abs() <= target;
     let left = residual.iter().map(|r| r.norm()).fold(0.0, f64::max);
-    let unresolved = if converged || saddle { 0.0 } else { left / softest.max(f64::MIN_POSITIVE) };
+    let unresolved = if converged || saddle { 0.0 } else { left / softest.max(NULL_CURVATURE) };
     Newton { step, softest, saddle, products, converged, unresolved }
 }
 

@@ -85,6 +85,27 @@ pub enum GateError {
         /// How far from rest it stopped.
         certificate: String,
     },
+    /// Yarn passed through yarn while the gate ran the dynamics with
+    /// self-contact: the push did not hold against the load there.
+    #[error(
+        "yarn passed through yarn {phase}after {work} substeps: segments {a} and {b} are {distance:.2} r apart; the \
+         self-contact push did not hold against the load (raise `self_contact_stiffness` within the stable bound, or \
+         pull less)"
+    )]
+    PassedThrough {
+        /// Where in the gate, with a trailing space, once known
+        /// ([`GateError::during`]).
+        phase: String,
+        /// Substeps into that run when it was found (checked every
+        /// [`crate::settle::CHUNK`]).
+        work: u64,
+        /// The segments, by their first nodes.
+        a: u32,
+        /// See `a`.
+        b: u32,
+        /// Their closest distance, in yarn radii.
+        distance: f64,
+    },
     /// The backend name is not known.
     #[error("unknown backend `{name}`; choose one of: {known}")]
     UnknownBackend {
@@ -105,6 +126,17 @@ impl GateError {
     /// (see [`NO_ADAPTER_EXIT`]), not because a GPU failed.
     pub fn is_no_adapter(&self) -> bool {
         matches!(self, GateError::Gpu(yarn_backend_wgpu::GpuError::NoAdapter { .. }))
+    }
+
+    /// The error with the gate's `phase` named, where it says where it
+    /// happened ([`GateError::PassedThrough`]).
+    pub(crate) fn during(self, phase: &str) -> Self {
+        match self {
+            GateError::PassedThrough { phase: at, work, a, b, distance } if at.is_empty() => {
+                GateError::PassedThrough { phase: format!("in `{phase}` "), work, a, b, distance }
+            }
+            other => other,
+        }
     }
 
     /// The error of a file or folder at `path` that could not be written

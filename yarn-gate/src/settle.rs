@@ -17,7 +17,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 use yarn_model::statics::{self, StaticOptions};
-use yarn_model::{Backend, Model, Params, State, V3};
+use yarn_model::{Backend, BackendError, Model, Params, State, V3};
 use yarn_topology::{Fabric, Pin};
 
 use crate::GateError;
@@ -169,9 +169,10 @@ pub struct Dynamics<'f, B> {
     damping: f64,
 }
 
-/// Substeps between looks at the speed; a certificate is computed only
-/// when the speed allows rest, and then after at least a tenth more work.
-const CHUNK: u64 = 2_000;
+/// Substeps between looks at the speed (and, with self-contact, at whether
+/// yarn passed through yarn); a certificate is computed only when the
+/// speed allows rest, and then after at least a tenth more work.
+pub const CHUNK: u64 = 2_000;
 /// A certificate is computed again only after this fraction more work
 /// than was done when the last one was.
 const CHECK_GROWTH: f64 = 0.1;
@@ -205,6 +206,9 @@ impl<'f, B: Backend> Dynamics<'f, B> {
         let mut looked: Option<(Vec<V3<f64>>, u64)> = None;
         loop {
             let state = self.backend.state()?.cast::<f64>();
+            if let Err(BackendError::Interpenetrating { a, b, distance }) = model.check_apart(&state.positions) {
+                return Err(GateError::PassedThrough { phase: String::new(), work: done, a, b, distance });
+            }
             let coasting = state.max_speed() / self.damping.max(f64::MIN_POSITIVE) / radius;
             let last = done >= budget;
             if last || (stop_at_rest && coasting < REST_COAST && done >= next_check) {
@@ -256,5 +260,45 @@ impl<B: Backend> Settle for Dynamics<'_, B> {
         let (state, certificate, done) = self.advance(rest.work, work, false, progress)?;
         let seconds = rest.seconds + clock.elapsed().as_secs_f64();
         Ok(Rest { state, pins: rest.pins.clone(), certificate, work: rest.work + done, seconds })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use yarn_backend_cpu::Serial;
+    use yarn_topology::{FabricParts, Vec3, YarnSpan};
+
+    use super::*;
+
+    /// A yarn dropped across a held one under a load its push holds only
+    /// deep inside it sinks in past 1 r, and the dynamics stops there by
+    /// name, with the substeps it ran and, once the gate says where, its
+    /// phase; the same drop onto a stiff enough push comes to rest on top.
+    #[test]
+    fn yarn_pushed_through_yarn_stops_the_dynamics_where_it_happened() {
+        let positions: Vec<Vec3> = (0..7)
+            .map(|i| Vec3::new(f64::from(i) - 3.0, 0.0, 0.0))
+            .chain((0..7).map(|i| Vec3::new(0.0, 2.5, f64::from(i) - 3.0)))
+            .collect();
+        let fabric = Fabric::from_parts(FabricParts {
+            positions,
+            yarns: vec![YarnSpan::open(0..7), YarnSpan::open(7..14)],
+            yarn_radius: Some(0.9),
+            ..FabricParts::default()
+        })
+        .unwrap();
+        let held: Vec<Pin> = (0..7).map(|i| Pin { node: i, target: fabric.positions()[i as usize] }).collect();
+        let drop = |self_contact_stiffness: f64| {
+            let params = Params { gravity: 200.0, self_contact_stiffness, ..Params::default() };
+            let mut dynamics = Dynamics::new(Serial::<f64>::new(), &fabric, &params).unwrap();
+            dynamics.settle(&State::at_rest(&fabric), &held, 20_000, &mut |_| {})
+        };
+        let error = drop(1.0).unwrap_err();
+        let GateError::PassedThrough { work, distance, .. } = &error else { panic!("{error}") };
+        assert!(*work > 0 && *work < 20_000 && *distance < 1.0, "{error}");
+        let named = error.during("drop").to_string();
+        assert!(named.starts_with("yarn passed through yarn in `drop` after "), "{named}");
+        let rest = drop(1_600.0).unwrap();
+        assert!(rest.state.positions[10].y > 0.9 * 2.0 * 0.9, "{:?}", rest.state.positions[10]);
     }
 }

@@ -361,16 +361,23 @@ impl Probe {
             let share = budget / EASE_SHARE;
             let eased = eased_out(settler, fabric, at, (axis, direction), separation, share, &mut |w| {
                 progress(easing, w, share);
-            })?;
-            let hold = settler.settle(&eased.state, &grips, budget, &mut |w| progress(label0, w, budget))?;
+            })
+            .map_err(|e| e.during(easing))?;
+            let hold = settler
+                .settle(&eased.state, &grips, budget, &mut |w| progress(label0, w, budget))
+                .map_err(|e| e.during(label0))?;
             Rest { work: eased.work + hold.work, seconds: eased.seconds + hold.seconds, ..hold }
         } else {
-            settler.settle(&start(&relaxed.state, &grips, 0.0), &grips, budget, &mut |w| progress(label0, w, budget))?
+            settler
+                .settle(&start(&relaxed.state, &grips, 0.0), &grips, budget, &mut |w| progress(label0, w, budget))
+                .map_err(|e| e.during(label0))?
         };
         let grips = metrics::straight_grips(fabric, at, axis, separation * (1.0 + PULL_STRAIN));
-        let strained = settler.settle(&start(&unstrained.state, &grips, PULL_STRAIN), &grips, budget, &mut |w| {
-            progress(label1, w, budget);
-        })?;
+        let strained = settler
+            .settle(&start(&unstrained.state, &grips, PULL_STRAIN), &grips, budget, &mut |w| {
+                progress(label1, w, budget);
+            })
+            .map_err(|e| e.during(label1))?;
         Ok(Self { axis, separation, direction, unstrained, strained })
     }
 
@@ -380,7 +387,11 @@ impl Probe {
         settler: &mut S,
         progress: &mut dyn FnMut(&'static str, u64, u64),
     ) -> Result<Self, GateError> {
-        let mut on = |rest: &Rest| settler.run_on(rest, rest.work, &mut |w| progress("double holds", w, rest.work));
+        let mut on = |rest: &Rest| {
+            settler
+                .run_on(rest, rest.work, &mut |w| progress("double holds", w, rest.work))
+                .map_err(|e| e.during("double holds"))
+        };
         Ok(Self { unstrained: on(&self.unstrained)?, strained: on(&self.strained)?, ..*self })
     }
 
@@ -432,14 +443,17 @@ fn run<S: Settle>(
     let budget = config.budget;
     let ruler = Model::<f64>::new(fabric, &config.params)?;
     let start = State::at_rest(fabric);
-    let relaxed = settler.settle(&start, &[], budget, &mut |w| progress("relax", w, budget))?;
+    let relaxed =
+        settler.settle(&start, &[], budget, &mut |w| progress("relax", w, budget)).map_err(|e| e.during("relax"))?;
     let extent = metrics::extent(fabric, &relaxed.state.positions).ok_or_else(|| config.too_small())?;
     let course = Probe::new(&mut settler, &ruler, fabric, &relaxed, Axis::Course, extent.width, budget, progress)?;
     let wale = Probe::new(&mut settler, &ruler, fabric, &relaxed, Axis::Wale, extent.height, budget, progress)?;
     let holds = [course.read(&ruler, fabric), wale.read(&ruler, fabric)];
     let at_rest = figures(fabric, &relaxed.state, [&holds[0], &holds[1]])?;
 
-    let relaxed_twice = settler.run_on(&relaxed, relaxed.work, &mut |w| progress("double relax", w, relaxed.work))?;
+    let relaxed_twice = settler
+        .run_on(&relaxed, relaxed.work, &mut |w| progress("double relax", w, relaxed.work))
+        .map_err(|e| e.during("double relax"))?;
     let (course_twice, wale_twice) = (course.doubled(&mut settler, progress)?, wale.doubled(&mut settler, progress)?);
     let holds_twice = [course_twice.read(&ruler, fabric), wale_twice.read(&ruler, fabric)];
     let twice = figures(fabric, &relaxed_twice.state, [&holds_twice[0], &holds_twice[1]])?;
