@@ -122,7 +122,7 @@ pub struct Certificate {
 }
 
 /// The last stretch of a run: where its nodes were `work` units of work
-/// before the state certified, with `total` units done in all.
+/// before the state judged, with `total` units done in all.
 #[derive(Debug, Clone, Copy)]
 pub struct Window<'a> {
     /// The positions at the window's start.

@@ -285,10 +285,9 @@ fn hold_start(
 /// nearer, and eases it out along `direction` (`axis` in that frame) to
 /// `separation` in steps of at most [`EASE_STRAIN`], each stretched
 /// affinely from the last and settled for `share` units of work
-/// (`progress` hears each step's). It only eases outward: a step that
-/// pressed a settled state together would press edges that rolled again
-/// while it settled through the fabric, and a 16x16 gate that did so
-/// stopped with `Interpenetrating`. The rest returned counts the whole
+/// (`progress` hears each step's). It only eases outward, which moves no
+/// two points closer: a step inward would press a settled state whose
+/// edges rolled again while it settled. The rest returned counts the whole
 /// way's work and time.
 fn eased_out<S: Settle>(
     settler: &mut S,
@@ -504,14 +503,14 @@ fn run<S: Settle>(
     })
 }
 
-/// The rest criteria's threshold on `path`, in words: the dynamics may
-/// also be held by friction.
+/// The rest criteria's threshold on `path`, in words: a rest on the
+/// dynamics may also have kept still.
 fn rest_threshold(path: Path) -> String {
     let at_minimum = format!("step < {REST_DISPLACEMENT} r, energy left < {REST_ENERGY:e}, coast < {REST_COAST} r");
     match path {
         Path::Static => at_minimum,
         Path::Dynamic => {
-            format!("{at_minimum}; or held: creep < {REST_DISPLACEMENT} r, load <= 1, coast < {REST_COAST} r")
+            format!("{at_minimum}; or still: creep over a doubling < {REST_DISPLACEMENT} r, coast < {REST_COAST} r")
         }
     }
 }
