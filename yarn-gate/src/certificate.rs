@@ -19,7 +19,7 @@
 //!   of negative curvature the state is a saddle, not a rest. CG stops at
 //!   a 1e-2 reduction, 300 iterations or a direction too soft to tell from
 //!   a free one; what it leaves unsolved counts as its residual force over
-//!   the softest stiffness it met, at least [`NULL_CURVATURE`] (|F|/k, for
+//!   the softest stiffness it met, at least 1e-6 (|F|/k, for
 //!   the part of the force it did not resolve).
 //! - **Energy**: the energy that step would still release, ½ F·d, is
 //!   below [`REST_ENERGY`] of the fabric's bending scale, ½ k_b Σ θ0²: the

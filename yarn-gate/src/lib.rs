@@ -93,8 +93,8 @@ pub enum GateError {
          pull less)"
     )]
     PassedThrough {
-        /// Where in the gate, with a trailing space, once known
-        /// ([`GateError::during`]).
+        /// Where in the gate ("in `hold wale` "), once the gate names it;
+        /// empty before.
         phase: String,
         /// Substeps into that run when it was found (checked every
         /// [`crate::settle::CHUNK`]).
