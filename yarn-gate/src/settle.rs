@@ -206,7 +206,10 @@ impl<'f, B: Backend> Dynamics<'f, B> {
         let mut looked: Option<(Vec<V3<f64>>, u64)> = None;
         loop {
             let state = self.backend.state()?.cast::<f64>();
-            if let Err(BackendError::Interpenetrating { a, b, distance }) = model.check_apart(&state.positions) {
+            // The start was checked when it was written.
+            if done > 0
+                && let Err(BackendError::Interpenetrating { a, b, distance }) = model.check_apart(&state.positions)
+            {
                 return Err(GateError::PassedThrough { phase: String::new(), work: done, a, b, distance });
             }
             let coasting = state.max_speed() / self.damping.max(f64::MIN_POSITIVE) / radius;
