@@ -9,10 +9,8 @@
 // `grid::find`.
 //
 // `rule` holds per node: its yarn's first node, its yarn's node count (the
-// top bit set for a closed yarn), how many segments after it are near it
-// (`ContactRule::ahead`) and where its tethered partners start; then one
-// more record whose last entry ends the partners; then the partners
-// (`Tethers`), sorted per segment.
+// top bit set for a closed yarn) and how many segments after it are near
+// it (`ContactRule::ahead`).
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> x: array<vec4<f32>>;
@@ -34,28 +32,17 @@ fn within(start: u32, to: u32, ahead: u32, len: u32, closed: bool) -> bool {
 
 // `ContactRule::near_along_yarn`.
 fn near_along_yarn(a: u32, b: u32) -> bool {
-    if rule[4u * a] != rule[4u * b] {
+    if rule[3u * a] != rule[3u * b] {
         return false;
     }
-    let len = rule[4u * a + 1u] & ~CLOSED;
-    let closed = (rule[4u * a + 1u] & CLOSED) != 0u;
-    return within(a, b, rule[4u * a + 2u], len, closed) || within(b, a, rule[4u * b + 2u], len, closed);
-}
-
-// `Tethers::contains`.
-fn tethered(a: u32, b: u32) -> bool {
-    let partners = 4u * (p.nodes + 1u);
-    for (var k = rule[4u * a + 3u]; k < rule[4u * a + 7u]; k++) {
-        if rule[partners + k] == b {
-            return true;
-        }
-    }
-    return false;
+    let len = rule[3u * a + 1u] & ~CLOSED;
+    let closed = (rule[3u * a + 1u] & CLOSED) != 0u;
+    return within(a, b, rule[3u * a + 2u], len, closed) || within(b, a, rule[3u * b + 2u], len, closed);
 }
 
 // `grid::may_touch`: whether segments i and j (i ≠ j) may touch.
 fn may_touch(i: u32, j: u32) -> bool {
-    if near_along_yarn(i, j) || tethered(i, j) {
+    if near_along_yarn(i, j) {
         return false;
     }
     let lo = min(i, j);

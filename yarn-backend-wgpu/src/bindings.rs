@@ -7,7 +7,6 @@
 
 use bytemuck::Pod;
 use wgpu::util::DeviceExt;
-use yarn_model::self_contact::Tethers;
 use yarn_model::self_contact::grid::EMPTY;
 use yarn_model::{Model, V3};
 
@@ -68,7 +67,7 @@ pub(crate) struct Buffers {
     pub(crate) snapshot: [wgpu::Buffer; 2],
     /// Self-contact (a 16-byte stand-in each while it is off): the
     /// candidate lists with their per-node records and anchors
-    /// (`lists.wgsl`), the rule and tethers (`grid_find.wgsl`), the grid
+    /// (`lists.wgsl`), the rule (`grid_find.wgsl`), the grid
     /// (`grid.wgsl`), and the indirect workgroup counts of a rebuild
     /// (`plan.wgsl`).
     pub(crate) lists: wgpu::Buffer,
@@ -182,21 +181,21 @@ pub(crate) fn lists_bytes(nodes: usize, slots: u32) -> u64 {
     4 * (4 + (rows::SLOTS as u64 + u64::from(slots)) * nodes as u64)
 }
 
-/// The rule of `model`'s self-contact and its tethered pairs
-/// (`grid_find.wgsl`): a 16-byte stand-in with self-contact off.
+/// The rule of `model`'s self-contact (`grid_find.wgsl`): per node, its
+/// yarn's first node, its yarn's node count (the top bit set for a closed
+/// yarn) and how many segments after it are near it; a 16-byte stand-in
+/// with self-contact off.
 pub(crate) fn rule(model: &Model<f32>) -> Vec<u32> {
     const CLOSED: u32 = 0x8000_0000;
     if !model.self_contact() {
         return vec![0; 4];
     }
-    let (rule, tethers) = (model.contact_rule(), Tethers::of(model));
-    let mut out = Vec::with_capacity(4 * (model.node_count() + 1) + tethers.partners().len());
+    let rule = model.contact_rule();
+    let mut out = Vec::with_capacity(3 * model.node_count());
     for (i, &ahead) in rule.ahead().iter().enumerate() {
         let yarn = rule.yarn_of(i);
-        out.extend([yarn.start, yarn.len() as u32 | if yarn.closed { CLOSED } else { 0 }, ahead, tethers.start()[i]]);
+        out.extend([yarn.start, yarn.len() as u32 | if yarn.closed { CLOSED } else { 0 }, ahead]);
     }
-    out.extend([0, 0, 0, tethers.start()[model.node_count()]]);
-    out.extend_from_slice(tethers.partners());
     out
 }
 

@@ -271,7 +271,7 @@ impl GpuFabric {
     }
 
     /// Have the next substep rebuild the self-contact lists: the positions,
-    /// parameters, pins or tethers changed other than by a substep.
+    /// parameters or pins changed other than by a substep.
     pub(crate) fn mark_stale(&self) {
         if self.model.self_contact() {
             self.gpu.queue.write_buffer(&self.buffers.lists, 0, bytemuck::bytes_of(&1u32));
@@ -379,13 +379,6 @@ impl GpuFabric {
         }
         self.model.set_contacts_alive(alive, &positions)?;
         self.upload_contacts();
-        if self.model.self_contact() {
-            // The tethers changed: a dead contact's crossing passes to
-            // self-contact.
-            self.buffers.rule = storage(&self.gpu.device, "rule", &rule(&self.model));
-            self.groups = Groups::new(&self.gpu, self.mode, &self.buffers);
-            self.mark_stale();
-        }
         Ok(())
     }
 

@@ -27,7 +27,6 @@
 //! whose box spans more than [`MAX_BOX`] cells a side, the yarn is
 //! stretched past any physical state, and the search reports it instead.
 
-use crate::self_contact::Tethers;
 use crate::terms::closest_gap;
 use crate::{Model, Real, V3};
 
@@ -162,15 +161,15 @@ pub struct Overstretched;
 /// every other segment of the grid in the cells it searches (found in its
 /// own cell's bucket, so once) and every long segment, whose closest
 /// distance to i, measured from the lower-numbered of the two so both
-/// agree, is below the reach, unless the two are near along their yarn or
-/// tethered. Empty for a node that starts no segment.
+/// agree, is below the reach, unless the two are near along their yarn.
+/// Empty for a node that starts no segment.
 ///
 /// # Errors
 /// [`Overstretched`] past [`MAX_LONG`] long segments, or when i's box
 /// spans more than [`MAX_BOX`] cells a side.
 pub fn find<T: Real>(
     shape: &GridShape<T>,
-    (model, tethers): (&Model<T>, &Tethers),
+    model: &Model<T>,
     x: &[V3<T>],
     i: usize,
     grid: &Grid,
@@ -183,7 +182,7 @@ pub fn find<T: Real>(
     }
     let (lo, hi) = shape.search_box(&x[i], &x[end]).ok_or(Overstretched)?;
     let mut keep = |j: u32| {
-        if j as usize != i && may_touch(shape, (model, tethers), x, i, j as usize) {
+        if j as usize != i && may_touch(shape, model, x, i, j as usize) {
             let at = out.partition_point(|&k| k < j);
             out.insert(at, j);
         }
@@ -215,15 +214,9 @@ pub fn find<T: Real>(
 }
 
 /// Whether segments i and j (i ≠ j) may touch: not near along their yarn,
-/// not tethered, and closer than the reach, measured from the lower one.
-fn may_touch<T: Real>(
-    shape: &GridShape<T>,
-    (model, tethers): (&Model<T>, &Tethers),
-    x: &[V3<T>],
-    i: usize,
-    j: usize,
-) -> bool {
-    if model.contact_rule().near_along_yarn(i, j) || tethers.contains(i as u32, j as u32) {
+/// and closer than the reach, measured from the lower one.
+fn may_touch<T: Real>(shape: &GridShape<T>, model: &Model<T>, x: &[V3<T>], i: usize, j: usize) -> bool {
+    if model.contact_rule().near_along_yarn(i, j) {
         return false;
     }
     let (lo, hi) = (i.min(j), i.max(j));
@@ -251,14 +244,13 @@ pub fn apart<T: Real>([p0, p1, q0, q1]: [&V3<T>; 4], reach: T) -> bool {
 /// [`Overstretched`], as [`find`].
 pub fn lists<T: Real>(model: &Model<T>, x: &[V3<T>]) -> Result<Vec<Vec<u32>>, Overstretched> {
     let shape = GridShape::new(model);
-    let tethers = Tethers::of(model);
     let mut grid = Grid::new(&shape, x.len());
     for i in 0..x.len() {
         insert(&shape, model, x, i, &mut grid);
     }
     let mut lists = vec![Vec::new(); x.len()];
     for (i, list) in lists.iter_mut().enumerate() {
-        find(&shape, (model, &tethers), x, i, &grid, list)?;
+        find(&shape, model, x, i, &grid, list)?;
     }
     Ok(lists)
 }
