@@ -12,9 +12,10 @@
 //! around them can pass through the other yarn while the two nodes keep
 //! their distance: left out of self-contact, a loop of the 16x16 patch's
 //! wale hold pulled through the loop it hooks. Assembled, the default
-//! loops' crossings are 2.4–3.3 r apart, beyond the push's reach; where one is
-//! pressed closer than 2r the push and the tether act side by side, each
-//! force counted once and each giving friction from its own normal force.
+//! loops' crossings are at least 2.4 r apart, beyond the push's reach;
+//! where one is pressed closer than 2r the push and the tether act side
+//! by side, each force counted once and each giving friction from its own
+//! normal force.
 //!
 //! A segment is named by its first node, the one it leaves
 //! ([`Model::segment_rest`]).
@@ -540,6 +541,29 @@ pub(super) mod tests {
             pieces.sort_unstable();
             assert_eq!(pieces, whole, "pieces of {size}");
         }
+    }
+
+    /// The default loops' tethered crossings, assembled, are out of the
+    /// push's reach: self-contact and the tethers meet only where a
+    /// crossing is pressed.
+    #[test]
+    fn assembled_tethered_crossings_are_out_of_reach() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
+        let model = Model::<f64>::new(&fabric, &Params::default()).unwrap();
+        let x = State::<f64>::at_rest(&fabric).positions;
+        let links = model.links();
+        let segments = |i: u32| [links[i as usize].prev(), links[i as usize].next().map(|_| i)].into_iter().flatten();
+        let mut closest = f64::INFINITY;
+        for c in model.contacts() {
+            for a in segments(c.a) {
+                for b in segments(c.b) {
+                    let end = |s: u32| x[links[s as usize].next().unwrap() as usize];
+                    let d = closest_gap(&x[a as usize], &end(a), &x[b as usize], &end(b)).0.norm();
+                    closest = closest.min(d / fabric.yarn_radius());
+                }
+            }
+        }
+        assert!(closest > 2.2 && closest < 3.0, "the closest tethered pair is {closest} r apart");
     }
 
     #[test]
