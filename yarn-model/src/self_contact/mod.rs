@@ -543,6 +543,22 @@ pub(super) mod tests {
         }
     }
 
+    /// The segment pairs `[a, b]`, `a` < `b`, that a persistent contact
+    /// joins: each segment touches one of its two nodes. Sorted.
+    fn tethered_pairs(model: &Model<f64>) -> Vec<[u32; 2]> {
+        let links = model.links();
+        let segments = |i: u32| [links[i as usize].prev(), links[i as usize].next().map(|_| i)].into_iter().flatten();
+        let mut pairs: Vec<[u32; 2]> = model
+            .contacts()
+            .iter()
+            .flat_map(|c| segments(c.a).flat_map(move |a| segments(c.b).map(move |b| [a.min(b), a.max(b)])))
+            .filter(|[a, b]| a != b)
+            .collect();
+        pairs.sort_unstable();
+        pairs.dedup();
+        pairs
+    }
+
     /// The default loops' tethered crossings, assembled, are out of the
     /// push's reach: self-contact and the tethers meet only where a
     /// crossing is pressed.
@@ -551,19 +567,15 @@ pub(super) mod tests {
         let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
         let model = Model::<f64>::new(&fabric, &Params::default()).unwrap();
         let x = State::<f64>::at_rest(&fabric).positions;
-        let links = model.links();
-        let segments = |i: u32| [links[i as usize].prev(), links[i as usize].next().map(|_| i)].into_iter().flatten();
-        let mut closest = f64::INFINITY;
-        for c in model.contacts() {
-            for a in segments(c.a) {
-                for b in segments(c.b) {
-                    let end = |s: u32| x[links[s as usize].next().unwrap() as usize];
-                    let d = closest_gap(&x[a as usize], &end(a), &x[b as usize], &end(b)).0.norm();
-                    closest = closest.min(d / fabric.yarn_radius());
-                }
-            }
-        }
-        assert!(closest > 2.2 && closest < 3.0, "the closest tethered pair is {closest} r apart");
+        let end = |s: u32| x[model.links()[s as usize].next().unwrap() as usize];
+        let pairs = tethered_pairs(&model);
+        let closest = pairs
+            .iter()
+            .map(|&[a, b]| {
+                closest_gap(&x[a as usize], &end(a), &x[b as usize], &end(b)).0.norm() / fabric.yarn_radius()
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!(!pairs.is_empty() && closest > 2.2 && closest < 3.0, "the closest tethered pair is {closest} r apart");
     }
 
     #[test]
@@ -581,15 +593,8 @@ pub(super) mod tests {
         // killing the contacts leaves the list as it was.
         let at_rest = State::<f64>::at_rest(&fabric).positions;
         find_pairs(&model, &at_rest, 0.5 * R, &mut found);
-        let links = model.links();
-        let touching = |i: u32, s: u32| s == i || links[i as usize].prev() == Some(s);
-        let tethered = found.iter().filter(|&&[a, b]| {
-            model
-                .contacts()
-                .iter()
-                .any(|c| (touching(c.a, a) && touching(c.b, b)) || (touching(c.a, b) && touching(c.b, a)))
-        });
-        assert!(tethered.count() > 0, "no tethered crossing among {} pairs", found.len());
+        let tethered = tethered_pairs(&model).into_iter().filter(|pair| found.binary_search(pair).is_ok()).count();
+        assert!(tethered > 0, "no tethered crossing among {} pairs", found.len());
         assert_eq!(found, every_pair(&model, &at_rest, 2.5 * R));
         model.set_contacts_alive(&vec![false; fabric.contacts().len()], &at_rest).unwrap();
         let mut released = Vec::new();
