@@ -6,8 +6,9 @@
 //! (t_p × t_q) · (c_q − c_p), for segments p and q with directions t and
 //! closest points c, says which passes over the other, and it can change
 //! only when the gap closes: when one passes through the other. So for any
-//! two segments close enough to touch, that sign must not flip from one substep to the next while their closest
-//! points stay inside both and they stay far from parallel. Without
+//! two segments close enough to touch, that sign must not flip from one
+//! substep to the next while their closest points stay inside both and
+//! they stay far from parallel. Without
 //! self-contact the same soak passes yarn through yarn, and the
 //! certificate sees it.
 //!

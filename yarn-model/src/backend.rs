@@ -94,7 +94,8 @@ pub enum BackendError {
         end: u64,
     },
     /// With self-contact on, the positions given have yarn already deep in
-    /// yarn: two segments that may touch closer than [`crate::self_contact::MIN_START_RADII`] yarn radii.
+    /// yarn: two segments that may touch closer than
+    /// [`crate::self_contact::MIN_START_RADII`] yarn radii.
     /// Self-contact would fling them apart, so the state is refused and the
     /// one before kept.
     #[error(

@@ -369,10 +369,10 @@ impl<T: Real> Model<T> {
     }
 
     /// With self-contact on, refuse positions `x` where two segments that
-    /// may touch are closer than
-    /// [`crate::self_contact::MIN_START_RADII`] yarn radii: yarn already
-    /// deep in yarn, which the penalty would fling apart. Backends check
-    /// the positions a fabric loads at and every state written.
+    /// may touch are closer than [`crate::self_contact::MIN_START_RADII`]
+    /// yarn radii: yarn already deep in yarn, which the penalty would fling
+    /// apart. Backends check the positions a fabric loads at and every
+    /// state written.
     ///
     /// # Errors
     /// [`BackendError::Interpenetrating`] naming the closest such pair.

@@ -145,10 +145,7 @@ impl ContactRule {
 /// model's rule and whose closest distance at `x` is below 2r + `skin`,
 /// sorted, into `out`. [`PairSearch`] finds the same pairs in pieces.
 pub fn find_pairs<T: Real>(model: &Model<T>, x: &[V3<T>], skin: f64, out: &mut Vec<[u32; 2]>) {
-    out.clear();
-    let search = PairSearch::new(model, x, skin);
-    search.find(0..search.pieces(), out);
-    out.sort_unstable();
+    PairSearch::new(model, x, skin).find_all(out);
 }
 
 /// [`find_pairs`]' search, split into pieces that can run in any order or
@@ -188,7 +185,11 @@ pub struct PairSearch<'m, T: Real> {
 impl<'m, T: Real> PairSearch<'m, T> {
     /// The search for the pairs closer than 2r + `skin` at `x`.
     pub fn new(model: &'m Model<T>, x: &[V3<T>], skin: f64) -> Self {
-        let reach = 2.0 * model.contact_rule().radius() + skin;
+        Self::reaching(model, x, 2.0 * model.contact_rule().radius() + skin)
+    }
+
+    /// The search for the pairs closer than `reach` at `x`.
+    fn reaching(model: &'m Model<T>, x: &[V3<T>], reach: f64) -> Self {
         Self { model, cells: SegmentCells::new(model, x, reach), reach }
     }
 
@@ -206,13 +207,19 @@ impl<'m, T: Real> PairSearch<'m, T> {
             }
         });
     }
+
+    /// Every piece's pairs, sorted, into `out`.
+    fn find_all(&self, out: &mut Vec<[u32; 2]>) {
+        out.clear();
+        self.find(0..self.pieces(), out);
+        out.sort_unstable();
+    }
 }
 
 /// The closest two segments at `x` that are not near each other along
 /// their yarn ([`ContactRule::near_along_yarn`]), as their distance in
-/// yarn radii and the pair; `None` when no
-/// two come within `within` radii. This is how far the yarn is from
-/// passing through itself.
+/// yarn radii and the pair; `None` when no two come within `within` radii.
+/// This is how far the yarn is from passing through itself.
 pub fn closest_approach<T: Real>(model: &Model<T>, x: &[V3<T>], within: f64) -> Option<(f64, [u32; 2])> {
     let r = model.contact_rule().radius();
     let mut best: Option<(f64, [u32; 2])> = None;
@@ -229,14 +236,7 @@ pub fn closest_approach<T: Real>(model: &Model<T>, x: &[V3<T>], within: f64) -> 
 /// radii at `x`, sorted: every place where yarn must not pass through
 /// yarn.
 pub fn pairs_within<T: Real>(model: &Model<T>, x: &[V3<T>], within: f64, out: &mut Vec<[u32; 2]>) {
-    out.clear();
-    let reach = within * model.contact_rule().radius();
-    search(model, x, reach, |a, b, d| {
-        if d < reach {
-            out.push([a, b]);
-        }
-    });
-    out.sort_unstable();
+    PairSearch::reaching(model, x, within * model.contact_rule().radius()).find_all(out);
 }
 
 /// Call `visit(a, b, d)` for every pair of segments `a` < `b` that are not
