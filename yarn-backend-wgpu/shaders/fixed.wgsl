@@ -81,7 +81,12 @@ fn total_force(i: u32) -> vec3<f32> {
     return q / p.scale + vec3<f32>(0.0, p.gravity_y, 0.0);
 }
 
-// Fixed point runs no self-contact, so there is nothing to watch.
+// Fixed point runs no self-contact: a thread's node is its index, and
+// there is nothing to watch.
+fn node_of(group: vec3<u32>, local: vec3<u32>, groups: vec3<u32>) -> u32 {
+    return thread_index(group, local, groups);
+}
+
 fn watch_speed(i: u32, velocity: vec3<f32>) {}
 
 fn watch_move(i: u32, at: vec3<f32>, velocity: vec3<f32>) {}

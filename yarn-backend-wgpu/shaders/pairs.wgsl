@@ -1,23 +1,20 @@
-// Self-contact's per-segment passes (`touch.wgsl`): each segment sums its
-// candidates' pushes (entry point `forces`, before the step) or friction
-// changes from x and v* (entry point `friction`, after it) on its first
-// node and on its last, once for both, and stores them for the node passes,
-// which add the sums of the two segments each node touches. CPU twin: the
-// pair passes and per-segment sums of yarn-backend-cpu's
-// `fabric/touching.rs`.
+// Self-contact's friction pass (`touch.wgsl`): each segment sums its
+// pushing pairs' friction changes from x and v* on its first node and on
+// its last, once for both, and stores them for `friction.wgsl`, which adds
+// the sums of the two segments each node touches. (The pushes are summed
+// in the gather's own pass, `gather.wgsl`.) CPU twin: the friction pass and
+// per-segment sums of yarn-backend-cpu's `fabric/touching.rs`.
 //
-// The pushes go segment by segment, each thread over its own slots, two at
-// a time: both pairs are loaded before either is summed, so that their
-// loads overlap. Friction visits only the slots that pushed, from none to a
-// dozen a segment, so a thread looping over its own kept a warp busy as
-// long as its fullest segment (a fifth of the lanes busy, on average).
-// Instead a workgroup shares out its segments' visits: a scan in
-// workgroup memory lays them end to end, each round every thread computes
-// one and leaves its shares in workgroup memory, and the segment's own
-// thread adds them in slot order: the sums of `Serial<f32>`, bit for bit.
-// Shared out the same way, the pushes were slower (127 µs a substep
-// against 103 at a million nodes on an H100): their slots, loaded segment
-// by segment, are read row by row.
+// Friction visits only the slots that pushed, from none to a dozen a
+// segment, so a thread looping over its own kept a warp busy as long as
+// its fullest segment (a fifth of the lanes busy, on average). Instead a
+// workgroup shares out its segments' visits: a scan in workgroup memory
+// lays them end to end, each round every thread computes one and leaves
+// its shares in workgroup memory, and the segment's own thread adds them
+// in slot order: the sums of `Serial<f32>`, bit for bit. Shared out the
+// same way, the pushes were slower (127 µs a substep against 103 at a
+// million nodes on an H100): their slots, loaded segment by segment, are
+// read row by row.
 
 @group(0) @binding(0) var<uniform> p: Params;
 @group(0) @binding(1) var<storage, read> x: array<vec4<f32>>;
@@ -67,39 +64,6 @@ fn owner_of(visit: u32) -> u32 {
         }
     }
     return low;
-}
-
-// Add the push of the pair in slot k of a segment's list to the segment's
-// `sums`, and if it pushes count it and mark slot k in `marked` (the first
-// 32).
-fn add_push(sums: ptr<function, Sums>, marked: ptr<function, u32>, pair: Pair, k: u32) {
-    let values = pair_values(pair, false);
-    if pushes(values) {
-        (*sums).pushing += 1.0;
-        if k < 32u {
-            *marked |= 1u << k;
-        }
-    }
-    add_shares(sums, first_share(values, pair.s_is_q), last_share(values, pair.s_is_q));
-}
-
-// Segment s's pushes and how many pairs push, and which of its first 32
-// slots push, in the record's last word.
-fn segment_pushes(s: u32, end: u32) -> Sums {
-    var sums = NO_SUMS;
-    var marked = 0u;
-    let count = lists[field_at(s, COUNT)];
-    for (var k = 0u; k < count; k += 2u) {
-        // Where k is the last, its own pair again, unused.
-        let pair = pair_of(s, end, lists[slot_at(s, k)], false);
-        let next = pair_of(s, end, lists[slot_at(s, min(k + 1u, count - 1u))], false);
-        add_push(&sums, &marked, pair, k);
-        if k + 1u < count {
-            add_push(&sums, &marked, next, k + 1u);
-        }
-    }
-    lists[field_at(s, PUSHING)] = marked;
-    return sums;
 }
 
 // The friction changes of the segments of this thread's workgroup, shared
@@ -161,25 +125,7 @@ fn shared_friction(group: vec3<u32>, local: u32, groups: vec3<u32>) {
         workgroupBarrier();
     }
     if end != NONE {
-        store_sums(s, end, sums, false);
-    }
-}
-
-@compute @workgroup_size(WORKGROUP)
-fn forces(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
-          @builtin(num_workgroups) groups: vec3<u32>) {
-    let s = thread_index(group, local, groups);
-    // Lists a node has moved half the skin from may miss a pair within
-    // reach: the batch is put back and run again with a rebuild check
-    // every substep (`fabric.rs`).
-    if s == 0u && lists[FAR] != 0u {
-        lists[LATE] = 1u;
-    }
-    if s < p.nodes {
-        let end = segment_end(s);
-        if end != NONE {
-            store_sums(s, end, segment_pushes(s, end), true);
-        }
+        store_sums(s, end, sums);
     }
 }
 

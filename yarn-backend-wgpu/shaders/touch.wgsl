@@ -1,7 +1,8 @@
 // Self-contact between segments of yarn (`yarn_model::self_contact`): the
 // pair arithmetic of `yarn_model::terms` and `yarn_model::step`, operation
-// for operation, each segment's sums over its candidate list (`pairs.wgsl`
-// writes them), and each node's from its two segments'. Used by the passes
+// for operation, each segment's sums over its candidate list (the pushes
+// in `gather.wgsl`'s pass, friction in `pairs.wgsl`), and each node's from
+// its two segments'. Used by the passes
 // that declare `p`, `x`, `v`, `lists` (read and write) and `v_star`.
 //
 // A pair beyond the reach adds exactly zero, so the sums do not depend on
@@ -11,7 +12,7 @@
 // segment it ends, each over the partners in order: the order of
 // `Serial<f32>` (yarn-backend-cpu's `fabric/touching.rs`). Each pair's
 // friction impulse is shared among the most pairs that push any of its
-// nodes (`step::pair_sharing`), counted by the push pass.
+// nodes (`step::pair_sharing`), counted by the gather's pass.
 
 // A value on each of a pair's four nodes: p0, p1, q0, q1.
 struct Quad {
@@ -149,23 +150,57 @@ fn add_shares(sums: ptr<function, Sums>, first: vec3<f32>, last: vec3<f32>) {
     (*sums).last += last;
 }
 
-// Write segment s's sums where the nodes they act on read them: the sum on
-// its first node at s, the sum on its last at `end`, word by word (from a
-// local array indexed in a loop, the H200 took 11–13 µs longer per pass at
-// a million nodes); with `counted` (the pushes), the count of pairs
-// pushing at both, which friction's pass then reads (`pushing_at`) and
-// leaves.
-fn store_sums(s: u32, end: u32, sums: Sums, counted: bool) {
+// Add the push of the pair in slot k of a segment's list to the segment's
+// `sums`, and if it pushes count it and mark slot k in `marked` (the first
+// 32).
+fn add_push(sums: ptr<function, Sums>, marked: ptr<function, u32>, pair: Pair, k: u32) {
+    let values = pair_values(pair, false);
+    if pushes(values) {
+        (*sums).pushing += 1.0;
+        if k < 32u {
+            *marked |= 1u << k;
+        }
+    }
+    add_shares(sums, first_share(values, pair.s_is_q), last_share(values, pair.s_is_q));
+}
+
+// Segment s's pushes and how many pairs push, and in `marked` which of its
+// first 32 slots push. Each thread over its own slots, two at a time: both
+// pairs are loaded before either is summed, so that their loads overlap.
+fn segment_pushes(s: u32, end: u32, marked: ptr<function, u32>) -> Sums {
+    var sums = NO_SUMS;
+    let count = lists[field_at(s, COUNT)];
+    for (var k = 0u; k < count; k += 2u) {
+        // Where k is the last, its own pair again, unused.
+        let pair = pair_of(s, end, lists[slot_at(s, k)], false);
+        let next = pair_of(s, end, lists[slot_at(s, min(k + 1u, count - 1u))], false);
+        add_push(&sums, marked, pair, k);
+        if k + 1u < count {
+            add_push(&sums, marked, next, k + 1u);
+        }
+    }
+    return sums;
+}
+
+// Write segment s's friction sums where the nodes they act on read them:
+// the sum on its first node at s, the sum on its last at `end`, word by
+// word (from a local array indexed in a loop, the H200 took 11–13 µs longer
+// per pass at a million nodes).
+fn store_sums(s: u32, end: u32, sums: Sums) {
     lists[sums_at(s, 0u)] = bitcast<u32>(sums.first.x);
     lists[sums_at(s, 1u)] = bitcast<u32>(sums.first.y);
     lists[sums_at(s, 2u)] = bitcast<u32>(sums.first.z);
     lists[sums_at(end, 4u)] = bitcast<u32>(sums.last.x);
     lists[sums_at(end, 5u)] = bitcast<u32>(sums.last.y);
     lists[sums_at(end, 6u)] = bitcast<u32>(sums.last.z);
-    if counted {
-        lists[sums_at(s, 3u)] = bitcast<u32>(sums.pushing);
-        lists[sums_at(end, 7u)] = bitcast<u32>(sums.pushing);
-    }
+}
+
+// Store how many pairs push node i from the segment it starts (`started`)
+// and from the one it ends (`ended`), which friction's pass reads
+// (`pushing_at`).
+fn store_pushing(i: u32, started: f32, ended: f32) {
+    lists[sums_at(i, 3u)] = bitcast<u32>(started);
+    lists[sums_at(i, 7u)] = bitcast<u32>(ended);
 }
 
 // Node i's sum from the segment it starts (`ended` false) or from the one
@@ -178,18 +213,9 @@ fn stored_sum(i: u32, ended: bool) -> vec3<f32> {
 }
 
 // How many pairs push node i: those of the segment it starts and of the one
-// it ends, as the push pass counted them (`step::pushing_pairs`).
+// it ends, as the gather's pass counted them (`step::pushing_pairs`).
 fn pushing_at(i: u32) -> f32 {
     return bitcast<f32>(lists[sums_at(i, 3u)]) + bitcast<f32>(lists[sums_at(i, 7u)]);
-}
-
-// Node i's self-contact force added to `f`: the sum of the segment it
-// starts, then of the one it ends (`pairs.wgsl`'s `forces` wrote them).
-fn with_self_contact(f: vec3<f32>, i: u32) -> vec3<f32> {
-    if (p.flags & SELF_CONTACT) == 0u {
-        return f;
-    }
-    return f + stored_sum(i, false) + stored_sum(i, true);
 }
 
 // Node i's self-contact friction change: the changes over the segment it

@@ -2,14 +2,16 @@
 // damped velocity v* in place and, without friction, the move into `out`
 // (entry point `step`); or the force alone into `out` (entry point
 // `forces`, for `Backend::compute_forces`). Each mode's file supplies
-// `total_force(i)`, `watch_speed(i, velocity)` and `watch_move` (`touch.wgsl`'s, or
-// nothing), and the bindings `p`, `x`, `v` and `out`; the colliders' push
-// comes last, as on the CPU.
+// `node_of` (the node a thread takes, NONE for none; the gather's computes
+// each node's self-contact pushes with it), `total_force(i)`,
+// `watch_speed(i, velocity)` and `watch_move` (`touch.wgsl`'s, or nothing),
+// and the bindings `p`, `x`, `v` and `out`; the colliders' push comes
+// last, as on the CPU.
 
 @compute @workgroup_size(WORKGROUP)
 fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
         @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = thread_index(group, local, groups);
+    let i = node_of(group, local, groups);
     if i >= p.nodes {
         return;
     }
@@ -26,7 +28,7 @@ fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
 @compute @workgroup_size(WORKGROUP)
 fn forces(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
           @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = thread_index(group, local, groups);
+    let i = node_of(group, local, groups);
     if i >= p.nodes {
         return;
     }

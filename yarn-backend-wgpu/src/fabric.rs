@@ -430,7 +430,7 @@ impl GpuFabric {
             if let Some(scatter) = kernel.scatter {
                 dispatch(scatter, n.max(self.model.contacts().len())).record(&mut pass);
             }
-            dispatch(kernel.forces, n).record(&mut pass);
+            Dispatch { workgroups: self.forces_workgroups(), ..dispatch(kernel.forces, n) }.record(&mut pass);
         }
         self.record_status(&mut encoder);
         self.gpu.queue.submit([encoder.finish()]);

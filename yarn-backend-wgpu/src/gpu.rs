@@ -63,8 +63,8 @@ pub(crate) struct Pipelines {
     pub(crate) plan: PassPipelines<1>,
     pub(crate) grid_insert: PassPipelines<1>,
     pub(crate) grid_find: PassPipelines<1>,
-    /// Each segment's pair sums: entry points `forces`, `friction`.
-    pub(crate) pairs: PassPipelines<2>,
+    /// Each segment's sums of its pairs' friction changes.
+    pub(crate) pairs: PassPipelines<1>,
 }
 
 /// A GPU device with yarnify's pipelines, shareable between backends.
@@ -204,7 +204,7 @@ impl Gpu {
                 &[Uniform, Read, ReadWrite, ReadWrite, Read, ReadWrite],
                 ["main"],
             ),
-            pairs: build(&device, &shaders::PAIRS, &[Uniform, Read, Read, ReadWrite], ["forces", "friction"]),
+            pairs: build(&device, &shaders::PAIRS, &[Uniform, Read, Read, ReadWrite], ["friction"]),
         };
         let limits = device.limits();
         let timestamps = features.contains(wgpu::Features::TIMESTAMP_QUERY);

@@ -8,9 +8,9 @@
 
 use yarn_model::Stage;
 
-use crate::Mode;
 use crate::bindings::{Parity, forces_kernel};
 use crate::fabric::GpuFabric;
+use crate::{Mode, WORKGROUP};
 
 /// One dispatch of a substep.
 #[derive(Debug, Clone, Copy)]
@@ -77,15 +77,11 @@ impl GpuFabric {
 
     /// Hand the self-contact passes before a substep's forces, from `at`, to
     /// `each`: where `may_rebuild`, whether to rebuild (`plan.wgsl`) and the
-    /// rebuild's two passes, dispatched indirectly by its answer; then each
-    /// segment's sums of its pairs' pushes (`pairs.wgsl`). Nothing with
-    /// self-contact off.
+    /// rebuild's two passes, dispatched indirectly by its answer. The
+    /// pushes are summed in the forces pass (`gather.wgsl`). Nothing with
+    /// self-contact off, or without `may_rebuild`.
     pub(crate) fn list_plan<'s>(&'s self, at: Parity, may_rebuild: bool, each: &mut impl FnMut(&Dispatch<'s>)) {
-        if !self.model.self_contact() {
-            return;
-        }
-        if !may_rebuild {
-            each(&self.pair_sums(at, false));
+        if !self.model.self_contact() || !may_rebuild {
             return;
         }
         let (pipelines, groups) = (&self.gpu.pipelines, &self.groups);
@@ -105,16 +101,28 @@ impl GpuFabric {
         });
         each(&rebuild("grid_insert.wgsl", &pipelines.grid_insert.entries[0], groups.grid_insert.at(at)));
         each(&rebuild("grid_find.wgsl", &pipelines.grid_find.entries[0], groups.grid_find.at(at)));
-        each(&self.pair_sums(at, false));
     }
 
-    /// `pairs.wgsl` from `at`: each segment's sums of its pairs' pushes, or
-    /// with `friction` of their friction changes from v*.
-    fn pair_sums(&self, at: Parity, friction: bool) -> Dispatch<'_> {
+    /// Workgroups for a gather forces pass (`gather.wgsl`, entry points
+    /// `step` and `forces`): with self-contact, each covers one node fewer
+    /// than it has threads.
+    pub(crate) fn forces_workgroups(&self) -> (u32, u32) {
+        let nodes = self.model.node_count();
+        if self.model.self_contact() {
+            let per_group = WORKGROUP as usize - 1;
+            self.workgroups(nodes.div_ceil(per_group) * WORKGROUP as usize)
+        } else {
+            self.workgroups(nodes)
+        }
+    }
+
+    /// `pairs.wgsl` from `at`: each segment's sums of its pairs' friction
+    /// changes from v*.
+    fn friction_sums(&self, at: Parity) -> Dispatch<'_> {
         Dispatch {
-            pass: if friction { "pairs.wgsl friction" } else { "pairs.wgsl forces" },
-            stages: if friction { FRICTION } else { FORCES },
-            pipeline: &self.gpu.pipelines.pairs.entries[usize::from(friction)],
+            pass: "pairs.wgsl friction",
+            stages: FRICTION,
+            pipeline: &self.gpu.pipelines.pairs.entries[0],
             group: self.groups.pairs.at(at),
             workgroups: self.workgroups(self.model.node_count()),
             indirect: None,
@@ -171,12 +179,12 @@ impl GpuFabric {
                 stages,
                 pipeline: forces.step,
                 group,
-                workgroups: nodes,
+                workgroups: self.forces_workgroups(),
                 indirect: None,
             });
             if friction {
                 if self.model.self_contact() && self.model.coeffs().friction > 0.0 {
-                    each(&self.pair_sums(at, true));
+                    each(&self.friction_sums(at));
                 }
                 let group = groups.friction.at(at);
                 let pipeline = &pipelines.friction.entries[0];

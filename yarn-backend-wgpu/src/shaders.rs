@@ -79,7 +79,7 @@ pub const CHECK: Pass = Pass { name: "check.wgsl", uses: &[LISTS], body: include
 /// `main`, one thread).
 pub const PLAN: Pass = Pass { name: "plan.wgsl", uses: &[LISTS, GRID], body: include_str!("../shaders/plan.wgsl") };
 
-/// Each segment's sums over its candidates (entry points `forces` and
+/// Each segment's sums of its pairs' friction changes (entry point
 /// `friction`).
 pub const PAIRS: Pass = Pass { name: "pairs.wgsl", uses: &[LISTS, TOUCH], body: include_str!("../shaders/pairs.wgsl") };
 
