@@ -8,13 +8,12 @@
 // neighbouring threads read and write neighbouring words:
 // - the node's record: whether a pin holds it (1) or not (0), the node
 //   after it along its yarn (NONE where none), how many candidates the
-//   segment it starts has, and which of its first 32 push (`pairs.wgsl`);
+//   segment it starts has, and which of its first 32 push (`gather.wgsl`);
 // - the position it was at when the lists were last built (the anchor), as
-//   f32 bits, x, y and z (and one row unused);
-// - the pair sums on the node, written by `pairs.wgsl` and read by the
-//   node passes, as f32 bits (x, y, z, then how many pairs push, which
-//   only the push pass writes): of the segment it starts, then of the
-//   segment it ends; zero where it starts or ends none;
+//   f32 bits, x, y and z;
+// - how many pairs push the node, as f32 bits, of the segment it starts,
+//   then of the segment it ends (zero where it starts or ends none):
+//   written by the forces pass, read by friction's (`pushing_at`);
 // - `p.slots` candidate rows: the partner segments, sorted, slot k of
 //   every segment in row k.
 
@@ -25,7 +24,7 @@
 // `check.wgsl`); `lists[FAR]`: some node has moved half the skin since the
 // last build, so the lists may miss a pair within reach until the next
 // (set by the move, cleared by the rebuild); `lists[LATE]`: the pushes ran
-// with `lists[FAR]` set (set by `pairs.wgsl`, read by `check.wgsl`). Any
+// with `lists[FAR]` set (set by `gather.wgsl`, read by `check.wgsl`). Any
 // thread may set any; all write the same 1.
 const STALE: u32 = 0u;
 const SPEEDING: u32 = 1u;
@@ -39,8 +38,8 @@ const NEXT: u32 = 1u;
 const COUNT: u32 = 2u;
 const PUSHING: u32 = 3u;
 const ANCHOR: u32 = 4u;
-const SUMS: u32 = 8u;
-const SLOTS: u32 = 16u;
+const PUSHED: u32 = 7u;
+const SLOTS: u32 = 9u;
 
 // Where field `row` of node (or segment) i is.
 fn field_at(i: u32, row: u32) -> u32 {
@@ -50,12 +49,6 @@ fn field_at(i: u32, row: u32) -> u32 {
 // Component c of node i's anchor.
 fn anchor_at(i: u32, c: u32) -> u32 {
     return field_at(i, ANCHOR + c);
-}
-
-// Word w of node i's pair sums (0–3 from the segment it starts, 4–7 from
-// the one it ends).
-fn sums_at(i: u32, w: u32) -> u32 {
-    return field_at(i, SUMS + w);
 }
 
 fn slot_at(s: u32, k: u32) -> u32 {

@@ -1,8 +1,8 @@
 // Self-contact between segments of yarn (`yarn_model::self_contact`): the
 // pair arithmetic of `yarn_model::terms` and `yarn_model::step`, operation
-// for operation, each segment's sums over its candidate list (the pushes
-// in `gather.wgsl`'s pass, friction in `pairs.wgsl`), and each node's from
-// its two segments'. Used by the passes
+// for operation, and each segment's sums over its candidate list (summed
+// by the passes that add them to the nodes: the pushes in `gather.wgsl`,
+// friction in `friction.wgsl`). Used by the passes
 // that declare `p`, `x`, `v`, `lists` (read and write) and `v_star`.
 //
 // A pair beyond the reach adds exactly zero, so the sums do not depend on
@@ -182,50 +182,18 @@ fn segment_pushes(s: u32, end: u32, marked: ptr<function, u32>) -> Sums {
     return sums;
 }
 
-// Write segment s's friction sums where the nodes they act on read them:
-// the sum on its first node at s, the sum on its last at `end`, word by
-// word (from a local array indexed in a loop, the H200 took 11–13 µs longer
-// per pass at a million nodes).
-fn store_sums(s: u32, end: u32, sums: Sums) {
-    lists[sums_at(s, 0u)] = bitcast<u32>(sums.first.x);
-    lists[sums_at(s, 1u)] = bitcast<u32>(sums.first.y);
-    lists[sums_at(s, 2u)] = bitcast<u32>(sums.first.z);
-    lists[sums_at(end, 4u)] = bitcast<u32>(sums.last.x);
-    lists[sums_at(end, 5u)] = bitcast<u32>(sums.last.y);
-    lists[sums_at(end, 6u)] = bitcast<u32>(sums.last.z);
-}
-
 // Store how many pairs push node i from the segment it starts (`started`)
 // and from the one it ends (`ended`), which friction's pass reads
 // (`pushing_at`).
 fn store_pushing(i: u32, started: f32, ended: f32) {
-    lists[sums_at(i, 3u)] = bitcast<u32>(started);
-    lists[sums_at(i, 7u)] = bitcast<u32>(ended);
-}
-
-// Node i's sum from the segment it starts (`ended` false) or from the one
-// it ends: zero where it starts or ends none, since nothing writes those
-// words.
-fn stored_sum(i: u32, ended: bool) -> vec3<f32> {
-    let w = select(0u, 4u, ended);
-    let words = vec3<u32>(lists[sums_at(i, w)], lists[sums_at(i, w + 1u)], lists[sums_at(i, w + 2u)]);
-    return bitcast<vec3<f32>>(words);
+    lists[field_at(i, PUSHED)] = bitcast<u32>(started);
+    lists[field_at(i, PUSHED + 1u)] = bitcast<u32>(ended);
 }
 
 // How many pairs push node i: those of the segment it starts and of the one
 // it ends, as the gather's pass counted them (`step::pushing_pairs`).
 fn pushing_at(i: u32) -> f32 {
-    return bitcast<f32>(lists[sums_at(i, 3u)]) + bitcast<f32>(lists[sums_at(i, 7u)]);
-}
-
-// Node i's self-contact friction change: the changes over the segment it
-// starts and the one it ends (`pairs.wgsl`'s `friction` summed them),
-// added; zero with self-contact or friction off.
-fn self_contact_friction(i: u32) -> vec3<f32> {
-    if (p.flags & SELF_CONTACT) == 0u || p.friction <= 0.0 {
-        return vec3<f32>(0.0);
-    }
-    return stored_sum(i, false) + stored_sum(i, true);
+    return bitcast<f32>(lists[field_at(i, PUSHED)]) + bitcast<f32>(lists[field_at(i, PUSHED + 1u)]);
 }
 
 // Where node i's velocity is final (after friction, or v* without it):

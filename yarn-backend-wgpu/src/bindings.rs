@@ -146,7 +146,7 @@ pub(crate) mod rows {
     pub(crate) const COUNT: usize = 2;
     #[cfg(test)]
     pub(crate) const ANCHOR: usize = 4;
-    pub(crate) const SLOTS: usize = 16;
+    pub(crate) const SLOTS: usize = 9;
 
     /// Where field `row` of node i lies in lists of `nodes` nodes.
     pub(crate) fn at(nodes: usize, i: usize, row: usize) -> usize {
@@ -228,7 +228,6 @@ pub(crate) struct Groups {
     pub(crate) plan: wgpu::BindGroup,
     pub(crate) grid_insert: ByParity,
     pub(crate) grid_find: ByParity,
-    pub(crate) pairs: ByParity,
 }
 
 impl Groups {
@@ -254,6 +253,7 @@ impl Groups {
                     &buffers.start,
                     &buffers.incident,
                     &buffers.lists,
+                    &buffers.chain,
                 ];
                 bind(gpu, &pipelines.friction.layout, "friction", &bound)
             }),
@@ -274,9 +274,6 @@ impl Groups {
             grid_insert: ByParity::new(|at| {
                 let bound = [&buffers.params, &x[at.x], &buffers.lists, &buffers.grid];
                 bind(gpu, &pipelines.grid_insert.layout, "grid insert", &bound)
-            }),
-            pairs: ByParity::new(|at| {
-                bind(gpu, &pipelines.pairs.layout, "pairs", &[&buffers.params, &x[at.x], &v[at.v], &buffers.lists])
             }),
             grid_find: ByParity::new(|at| {
                 let bound = [&buffers.params, &x[at.x], &buffers.lists, &buffers.grid, &buffers.rule, &buffers.status];

@@ -63,8 +63,6 @@ pub(crate) struct Pipelines {
     pub(crate) plan: PassPipelines<1>,
     pub(crate) grid_insert: PassPipelines<1>,
     pub(crate) grid_find: PassPipelines<1>,
-    /// Each segment's sums of its pairs' friction changes.
-    pub(crate) pairs: PassPipelines<1>,
 }
 
 /// A GPU device with yarnify's pipelines, shareable between backends.
@@ -184,7 +182,7 @@ impl Gpu {
             friction: build(
                 &device,
                 &shaders::FRICTION,
-                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, ReadWrite],
+                &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, ReadWrite, Read],
                 ["main"],
             ),
             pins: build(&device, &shaders::PINS, &[Uniform, ReadWrite, ReadWrite, Read, ReadWrite], ["main"]),
@@ -204,7 +202,6 @@ impl Gpu {
                 &[Uniform, Read, ReadWrite, ReadWrite, Read, ReadWrite],
                 ["main"],
             ),
-            pairs: build(&device, &shaders::PAIRS, &[Uniform, Read, Read, ReadWrite], ["friction"]),
         };
         let limits = device.limits();
         let timestamps = features.contains(wgpu::Features::TIMESTAMP_QUERY);

@@ -47,7 +47,6 @@ const FRICTION_AND_MOVE: &[Stage] = &[Stage::Friction, Stage::Move];
 const PINS: &[Stage] = &[Stage::Pins];
 const RESEAT: &[Stage] = &[Stage::Reseat];
 const CHECK: &[Stage] = &[Stage::Check];
-const FRICTION: &[Stage] = &[Stage::Friction];
 /// The self-contact lists are part of finding the forces.
 const LISTS: &[Stage] = &[Stage::Forces];
 
@@ -103,12 +102,12 @@ impl GpuFabric {
         each(&rebuild("grid_find.wgsl", &pipelines.grid_find.entries[0], groups.grid_find.at(at)));
     }
 
-    /// Workgroups for a gather forces pass (`gather.wgsl`, entry points
-    /// `step` and `forces`): with self-contact, each covers one node fewer
-    /// than it has threads.
-    pub(crate) fn forces_workgroups(&self) -> (u32, u32) {
+    /// Workgroups for a node pass (`gather.wgsl`'s, `friction.wgsl`) that
+    /// sums self-contact segment by segment where `segment_sums`: then each
+    /// covers one node fewer than it has threads.
+    fn node_workgroups(&self, segment_sums: bool) -> (u32, u32) {
         let nodes = self.model.node_count();
-        if self.model.self_contact() {
+        if segment_sums {
             let per_group = WORKGROUP as usize - 1;
             self.workgroups(nodes.div_ceil(per_group) * WORKGROUP as usize)
         } else {
@@ -116,17 +115,10 @@ impl GpuFabric {
         }
     }
 
-    /// `pairs.wgsl` from `at`: each segment's sums of its pairs' friction
-    /// changes from v*.
-    fn friction_sums(&self, at: Parity) -> Dispatch<'_> {
-        Dispatch {
-            pass: "pairs.wgsl friction",
-            stages: FRICTION,
-            pipeline: &self.gpu.pipelines.pairs.entries[0],
-            group: self.groups.pairs.at(at),
-            workgroups: self.workgroups(self.model.node_count()),
-            indirect: None,
-        }
+    /// Workgroups for a gather forces pass (entry points `step` and
+    /// `forces`), which sums the pushes with self-contact on.
+    pub(crate) fn forces_workgroups(&self) -> (u32, u32) {
+        self.node_workgroups(self.model.self_contact())
     }
 
     /// Hand each dispatch of one substep from `at` to `each`, in order:
@@ -183,17 +175,15 @@ impl GpuFabric {
                 indirect: None,
             });
             if friction {
-                if self.model.self_contact() && self.model.coeffs().friction > 0.0 {
-                    each(&self.friction_sums(at));
-                }
                 let group = groups.friction.at(at);
                 let pipeline = &pipelines.friction.entries[0];
+                let segment_sums = self.model.self_contact() && self.model.coeffs().friction > 0.0;
                 each(&Dispatch {
                     pass: "friction.wgsl",
                     stages: FRICTION_AND_MOVE,
                     pipeline,
                     group,
-                    workgroups: nodes,
+                    workgroups: self.node_workgroups(segment_sums),
                     indirect: None,
                 });
                 next.v = 1 - at.v;

@@ -79,10 +79,6 @@ pub const CHECK: Pass = Pass { name: "check.wgsl", uses: &[LISTS], body: include
 /// `main`, one thread).
 pub const PLAN: Pass = Pass { name: "plan.wgsl", uses: &[LISTS, GRID], body: include_str!("../shaders/plan.wgsl") };
 
-/// Each segment's sums of its pairs' friction changes (entry point
-/// `friction`).
-pub const PAIRS: Pass = Pass { name: "pairs.wgsl", uses: &[LISTS, TOUCH], body: include_str!("../shaders/pairs.wgsl") };
-
 /// A rebuild's first pass: segments into the grid (entry point `main`).
 pub const GRID_INSERT: Pass =
     Pass { name: "grid_insert.wgsl", uses: &[LISTS, GRID], body: include_str!("../shaders/grid_insert.wgsl") };
@@ -99,8 +95,8 @@ pub const COPY: Pass = Pass { name: "copy.wgsl", uses: &[], body: include_str!("
 pub const FMA_TEST: Pass = Pass { name: "fma_test.wgsl", uses: &[], body: include_str!("../shaders/fma_test.wgsl") };
 
 /// Every pass, for validation.
-pub const ALL: [Pass; 13] =
-    [GATHER, FIXED, FRICTION, PINS, FUSED, RESEAT, CHECK, PLAN, GRID_INSERT, GRID_FIND, PAIRS, COPY, FMA_TEST];
+pub const ALL: [Pass; 12] =
+    [GATHER, FIXED, FRICTION, PINS, FUSED, RESEAT, CHECK, PLAN, GRID_INSERT, GRID_FIND, COPY, FMA_TEST];
 
 #[cfg(test)]
 pub(crate) mod tests {

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use yarn_backend_cpu::Serial;
 use yarn_model::self_contact::grid;
 use yarn_model::{Backend, BackendError, Params, State, V3};
-use yarn_topology::{Chart, Fabric, Geometry};
+use yarn_topology::{Chart, Fabric, FabricParts, Geometry, Vec3, YarnSpan};
 
 use crate::bindings::rows;
 use crate::fabric::FIRST_SLOTS;
@@ -159,6 +159,49 @@ fn a_node_its_pin_stops_has_not_diverged() {
         b.advance(3).unwrap_or_else(|e| panic!("{name}: {e}"));
     }
     assert_eq!(backend.state().unwrap().velocities[10], V3::zeros(), "the pin stops its node");
+    assert_eq!(backend.state().unwrap(), serial.state().unwrap());
+}
+
+/// A closed yarn's first node takes the sums of the segment that closes
+/// the yarn, which no thread beside it has (`gather.wgsl` and
+/// `friction.wgsl` sum it again there): rings of 8 nodes lie along an open
+/// yarn of 300, each ring's closing segment parallel to it 1.5 r above and
+/// sliding along it, so that segment pushes and rubs. Forces and a
+/// trajectory are `Serial<f32>`'s bit for bit.
+#[test]
+fn a_closed_yarns_first_node_takes_the_segment_that_closes_it() {
+    let Some(gpu) = gpu() else { return };
+    let r = 0.5;
+    let mut positions: Vec<Vec3> = (0..300).map(|i| Vec3::new(f64::from(i), 0.0, 0.0)).collect();
+    let mut yarns = vec![YarnSpan { start: 0, end: 300, closed: false }];
+    let (ring, step) = (2.0, std::f64::consts::TAU / 8.0);
+    let centre_height = 1.5 * r + ring * (step / 2.0).cos();
+    for centre in [20.0, 95.0, 130.0, 250.0] {
+        let start = positions.len() as u32;
+        // Node 0 just right of the bottom, node 7 just left: 7 to 0 closes it.
+        positions.extend((0..8).map(|k| {
+            let angle = -std::f64::consts::FRAC_PI_2 + step / 2.0 + step * f64::from(k);
+            Vec3::new(centre + ring * angle.cos(), centre_height + ring * angle.sin(), 0.0)
+        }));
+        yarns.push(YarnSpan { start, end: start + 8, closed: true });
+    }
+    let parts = FabricParts { positions, yarns, yarn_radius: Some(r), ..FabricParts::default() };
+    let fabric = Fabric::from_parts(parts).unwrap();
+    let params = Params { self_contact_stiffness: 800.0, friction: 0.5, sleep_speed: 0.0, ..Params::default() };
+    let mut state = State::<f32>::at_rest(&fabric);
+    for v in &mut state.velocities[300..] {
+        *v = V3::new(0.5, -0.2, 0.0);
+    }
+    let mut backend = Wgpu::with_gpu(Arc::clone(&gpu), Mode::Gather);
+    let mut serial = Serial::<f32>::new();
+    for b in [&mut backend as &mut dyn Backend<Real = f32>, &mut serial] {
+        place(b, &fabric, &params, &state);
+    }
+    let forces = serial.forces().unwrap();
+    assert!(forces[300].norm() > 0.0, "the closing segment pushes the ring's first node");
+    assert_eq!(backend.forces().unwrap(), forces);
+    backend.advance(20).unwrap();
+    serial.advance(20).unwrap();
     assert_eq!(backend.state().unwrap(), serial.state().unwrap());
 }
 
