@@ -130,8 +130,8 @@ fn a_soak_of_random_grabs_keeps_every_crossing_and_without_self_contact_does_not
 /// --self-contact 1600` runs it), the candidate pairs per node, the share
 /// of them within 2r (those push) and how the rest spread to 2r + the skin,
 /// and per 32-segment warp how busy its lanes are: a warp's loop runs as
-/// many times as its fullest segment's (`pairs.wgsl`, before friction's
-/// visits were shared out across the workgroup),
+/// many times as its fullest segment's (the pushes in `gather.wgsl`; so
+/// did friction's before its visits were shared out across the workgroup),
 /// over every candidate for the pushes and over the pushing ones for
 /// friction. About half a minute:
 /// `cargo test --release -p yarn-gate --test crossings -- --ignored --nocapture measure_the_candidates`.

@@ -11,11 +11,12 @@
 //! a block's pairs by component into its thread's [`PairScratch`], finds
 //! their closest points or friction impulses in a loop that vectorises
 //! (the operations of `yarn_model::terms` and `step`, in their order), and
-//! scatters the results into the slots. After each, the
-//! *segment sums* (the twin of `pairs.wgsl`) add up each segment's slots on
-//! its first node and on its last, in the order of its partners, and each
-//! node takes the sum of the segment it starts and then of the one it ends,
-//! in the block pass and the move pass. That is the GPU's order, so
+//! scatters the results into the slots. After each, the *segment sums*
+//! (the twin of the sums in `gather.wgsl` and `friction.wgsl`) add up each
+//! segment's slots on its first node and on its last, in the order of its
+//! partners, and each node takes the sum of the segment it starts and then
+//! of the one it ends, in the block pass and the move pass. That is the
+//! GPU's order, so
 //! `Serial<f32>` and `wgpu` agree bit for bit. No node or segment is
 //! written by two threads, and the sums do not depend on the thread count
 //! or on when the list was built (pairs out of reach add exactly zero).
@@ -189,7 +190,8 @@ impl<T: Real> SelfContacts<T> {
 
     /// Segment `s`'s sums over its pushing pairs, from `values` (the force
     /// or friction slots), on its first node and its last, in partner
-    /// order, and their count: the twin of `pairs.wgsl`.
+    /// order, and their count: the twin of `segment_pushes` (`touch.wgsl`)
+    /// and of `friction.wgsl`'s shared-out sums.
     fn segment_sums(&self, s: usize, values: &Field<T>) -> SegmentSums<T> {
         let mut sums = SegmentSums::default();
         for &slot in self.entries_of(Some(s as u32)).iter().filter(|&&slot| self.active[slot as usize / 4]) {
