@@ -19,7 +19,7 @@ use yarn_topology::{Chart, Fabric, Geometry, Pattern, Pin, Side};
 
 use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
-use crate::cli::{Outcome, PATTERN_HELP, PatternArg, TIMED_RUNS, counts, parse_pattern, with_bar};
+use crate::cli::{Outcome, PATTERN_HELP, PatternArg, TIMED_RUNS, counts, parse_fraction, parse_pattern, with_bar};
 use crate::preset::Preset;
 
 /// `yarn-gate bench`: time each backend at each size.
@@ -57,7 +57,7 @@ pub struct BenchArgs {
     pin_top: bool,
     /// Fraction of the contacts to release first, the top rows' (as after
     /// unravelling).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, value_parser = parse_fraction, allow_negative_numbers = true)]
     dead: f64,
     /// Let blocks of nodes slower than this sleep (CPU backends; 0: never).
     #[arg(long, default_value_t = 0.0)]

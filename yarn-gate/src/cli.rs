@@ -57,6 +57,50 @@ pub(crate) fn parse_size(text: &str) -> Result<(usize, usize), String> {
     Ok((width.trim().parse().map_err(|_| err())?, height.trim().parse().map_err(|_| err())?))
 }
 
+/// Parse a number that must be finite and satisfy `within`, which `what`
+/// names in words ("a finite number above 0").
+fn parse_number(text: &str, within: impl Fn(f64) -> bool, what: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(value) if value.is_finite() && within(value) => Ok(value),
+        _ => Err(format!("`{text}` is not {what}")),
+    }
+}
+
+/// Parse an angle in degrees: any finite number.
+///
+/// # Errors
+/// A message naming the text, for NaN, an infinity or no number.
+pub(crate) fn parse_degrees(text: &str) -> Result<f32, String> {
+    parse_number(text, |_| true, "a finite number of degrees").map(|degrees| degrees as f32)
+}
+
+/// Parse a length of time, a count of seconds above zero.
+///
+/// # Errors
+/// A message naming the text, for zero, a negative number, NaN, an
+/// infinity or no number.
+pub(crate) fn parse_seconds(text: &str) -> Result<f64, String> {
+    parse_number(text, |seconds| seconds > 0.0, "a finite number of seconds above 0")
+}
+
+/// Parse a fraction, from 0 to 1 inclusive.
+///
+/// # Errors
+/// A message naming the text, for a number outside 0..=1, NaN or no
+/// number.
+pub(crate) fn parse_fraction(text: &str) -> Result<f64, String> {
+    parse_number(text, |fraction| (0.0..=1.0).contains(&fraction), "a fraction from 0 to 1")
+}
+
+/// Parse a distance, finite and not negative.
+///
+/// # Errors
+/// A message naming the text, for a negative number, NaN, an infinity or
+/// no number.
+pub(crate) fn parse_distance(text: &str) -> Result<f64, String> {
+    parse_number(text, |distance| distance >= 0.0, "a finite distance, 0 or more")
+}
+
 /// The help of every command's `--pattern`. Each pattern name is spelled
 /// out here, as clap needs a constant; a test holds it to [`Pattern::ALL`].
 pub(crate) const PATTERN_HELP: &str = "The stitches: a pattern name (stockinette, reverse-stockinette, garter, \
@@ -164,6 +208,24 @@ mod tests {
         assert_eq!((chart.width(), chart.height(), chart.to_text()), (2, 2, "kp\npk\n".to_owned()), "its own size");
         std::fs::remove_file(&path).unwrap();
         assert_eq!(PatternArg::Named(Pattern::Garter).chart((3, 2)).unwrap().to_text(), "ppp\nkkk\n");
+    }
+
+    #[test]
+    fn a_number_out_of_its_range_is_refused_by_name() {
+        for bad in ["nan", "NaN", "inf", "-inf", "1e999", "", "two"] {
+            let quoted = format!("`{bad}` is not ");
+            for parse in [parse_seconds, parse_fraction, parse_distance] {
+                assert!(parse(bad).is_err_and(|message| message.starts_with(&quoted)), "{bad}");
+            }
+            assert!(parse_degrees(bad).is_err_and(|message| message.starts_with(&quoted)), "{bad}");
+        }
+        assert_eq!(parse_degrees("-30"), Ok(-30.0));
+        assert_eq!(parse_seconds(" 0.25 "), Ok(0.25));
+        assert!(parse_seconds("0").is_err() && parse_seconds("-1").is_err());
+        assert_eq!((parse_fraction("0"), parse_fraction("1")), (Ok(0.0), Ok(1.0)));
+        assert!(parse_fraction("1.01").is_err() && parse_fraction("-0.01").is_err());
+        assert_eq!(parse_distance("0"), Ok(0.0));
+        assert!(parse_distance("-0.5").is_err());
     }
 
     #[test]

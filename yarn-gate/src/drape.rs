@@ -23,7 +23,9 @@ use yarn_topology::Fabric;
 
 use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
-use crate::cli::{Outcome, PATTERN_HELP, PatternArg, SUBSTEPS, parse_pattern, parse_size, with_bar};
+use crate::cli::{
+    Outcome, PATTERN_HELP, PatternArg, SUBSTEPS, parse_degrees, parse_distance, parse_pattern, parse_size, with_bar,
+};
 use crate::preset::Preset;
 
 /// Two segments closer than this, in yarn radii, count as passing into
@@ -68,7 +70,7 @@ pub struct DrapeArgs {
     collider: ColliderArg,
     /// Height of the patch's lowest point above the collider, in model
     /// units.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, value_parser = parse_distance, allow_negative_numbers = true)]
     drop: f64,
     /// Fold the patch in half across its courses before dropping it, so
     /// its two halves land on each other.
@@ -96,10 +98,10 @@ pub struct DrapeArgs {
     image: (usize, usize),
     /// Camera rotation about the vertical axis, in degrees; 0 looks along
     /// the fold's crease, at its cross-section.
-    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 20.0, value_parser = parse_degrees, allow_negative_numbers = true)]
     orbit: f32,
     /// Camera angle above the floor, in degrees.
-    #[arg(long, default_value_t = 35.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 35.0, value_parser = parse_degrees, allow_negative_numbers = true)]
     elevation: f32,
     /// Print the report as JSON.
     #[arg(long)]
@@ -209,6 +211,7 @@ impl DrapeArgs {
         let ColliderArg::Plane = self.collider;
         let colliders = [Collider::Plane(Plane::floor(0.0))];
         let params = drape_params(self.preset.params(), self.self_contact);
+        check_drop(&Model::new(&fabric, &params)?, self.drop)?;
         let start = drape_start(&fabric, self.fold, self.drop);
         let (report, positions) = with_bar(self.steps, SUBSTEPS, "draping", |bar| {
             with_backend(
@@ -259,6 +262,21 @@ pub fn drape_params(params: Params, stiffness: Option<f64>) -> Params {
     let own = params.self_contact_stiffness;
     let k_sc = stiffness.unwrap_or(if own > 0.0 { own } else { DRAPE_SELF_CONTACT });
     Params { gravity: DRAPE_GRAVITY, self_contact_stiffness: k_sc, ..params }
+}
+
+/// Refuse a `drop` from which a free fall under [`DRAPE_GRAVITY`] would
+/// reach the floor at `model`'s divergence speed
+/// ([`Model::divergence_speed`]) or faster: that run would stop as
+/// diverged at the impact, for no fault of the step.
+///
+/// # Errors
+/// [`GateError::DropTooHigh`], naming the highest drop allowed.
+fn check_drop(model: &Model<f64>, drop: f64) -> Result<(), GateError> {
+    let (speed, limit) = ((2.0 * DRAPE_GRAVITY * drop).sqrt(), model.divergence_speed());
+    if speed < limit {
+        return Ok(());
+    }
+    Err(GateError::DropTooHigh { drop, speed, limit, highest: limit * limit / (2.0 * DRAPE_GRAVITY) })
 }
 
 /// The start of a drape: the patch laid flat, face up, its lowest point
@@ -406,6 +424,24 @@ mod tests {
         let through = without.min_distance_r.unwrap_or(f64::INFINITY);
         assert!(through < 1.0, "without self-contact the halves should pass into each other; closest {through} r");
         assert!(!without.clean(), "the drape without self-contact ends clean");
+    }
+
+    /// A drop whose fall would reach the divergence speed is refused
+    /// before anything runs, naming the highest drop that does not; the
+    /// highest is just under that speed, and a fall from it is accepted.
+    #[test]
+    fn a_drop_too_high_to_land_is_refused_by_the_highest_allowed() {
+        let fabric =
+            Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &yarn_topology::Geometry::default()).unwrap();
+        let model = Model::<f64>::new(&fabric, &drape_params(Params::default(), None)).unwrap();
+        assert!(check_drop(&model, 0.0).is_ok() && check_drop(&model, 2.0).is_ok());
+        let Err(GateError::DropTooHigh { highest, limit, .. }) = check_drop(&model, 1e6) else {
+            panic!("a million units up is refused");
+        };
+        assert_eq!(limit, model.divergence_speed());
+        assert!((2.0 * DRAPE_GRAVITY * highest).sqrt() <= limit * (1.0 + 1e-12));
+        assert!(check_drop(&model, 0.999 * highest).is_ok());
+        assert!(check_drop(&model, 1.001 * highest).is_err());
     }
 
     #[test]

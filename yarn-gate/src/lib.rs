@@ -106,6 +106,22 @@ pub enum GateError {
         /// Their closest distance, in yarn radii.
         distance: f64,
     },
+    /// `drape --drop` is so high that the fall would reach the
+    /// divergence speed, at which a run stops, before the floor.
+    #[error(
+        "a drop of {drop} falls onto the floor at {speed:.0} units/s, at or past {limit:.0}, the speed at which a run \
+         stops as diverged; drop from below {highest:.0}"
+    )]
+    DropTooHigh {
+        /// The `--drop` given.
+        drop: f64,
+        /// The speed of a free fall from it at the floor.
+        speed: f64,
+        /// The model's divergence speed.
+        limit: f64,
+        /// The highest drop whose fall stays under it.
+        highest: f64,
+    },
     /// The backend name is not known.
     #[error("unknown backend `{name}`; choose one of: {known}")]
     UnknownBackend {

@@ -31,7 +31,7 @@ use yarn_topology::{Chart, Fabric, Geometry, Pin, Side};
 use crate::GateError;
 use crate::backends::{BackendWork, for_each_backend, left_out_warning};
 use crate::bench::median;
-use crate::cli::{Outcome, PATTERN_HELP, PatternArg, parse_pattern, parse_size, with_bar};
+use crate::cli::{Outcome, PATTERN_HELP, PatternArg, parse_pattern, parse_seconds, parse_size, with_bar};
 use crate::plot::{PanelAxes, canvas, distinct, log_log_panel, panel_legend, plot_error};
 use crate::preset::Preset;
 
@@ -56,7 +56,7 @@ pub struct ParetoArgs {
     #[arg(long, default_value = "16x16", value_parser = parse_size)]
     size: (usize, usize),
     /// Simulated seconds per problem.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = parse_seconds, allow_negative_numbers = true)]
     duration: f64,
     /// Substeps per 1/150 s control tick to try, comma-separated: h =
     /// 1/(150 N) s, so 10 is the paper's 1/1500.

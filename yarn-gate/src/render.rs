@@ -18,7 +18,7 @@ use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
 use crate::check::STATIC_BUDGET;
 use crate::check::rest::PROGRESS;
-use crate::cli::{Outcome, PATTERN_HELP, PatternArg, SUBSTEPS, parse_pattern, parse_size, with_bar};
+use crate::cli::{Outcome, PATTERN_HELP, PatternArg, SUBSTEPS, parse_degrees, parse_pattern, parse_size, with_bar};
 use crate::preset::Preset;
 use crate::settle::{Settle, Statics};
 
@@ -87,10 +87,10 @@ pub struct RenderArgs {
     side: ViewSide,
     /// Camera rotation about the vertical axis, in degrees, 0 facing the
     /// technical face [default: 0 for --side face, 180 back, 90 edge].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, value_parser = parse_degrees, allow_negative_numbers = true)]
     orbit: Option<f32>,
     /// Camera angle above the fabric's plane, in degrees [default: 0].
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, value_parser = parse_degrees, allow_negative_numbers = true)]
     elevation: Option<f32>,
     /// Draw the certified rest that `check` measures (its frictionless
     /// solve) instead of --steps substeps of the dynamics on --backend.

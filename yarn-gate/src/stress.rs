@@ -24,7 +24,7 @@ use yarn_topology::{Chart, Fabric, Geometry, Pin};
 
 use crate::GateError;
 use crate::backends::{BackendWork, for_each_backend};
-use crate::cli::{Outcome, SUBSTEPS, counts, parse_size, with_bar};
+use crate::cli::{Outcome, SUBSTEPS, counts, parse_seconds, parse_size, with_bar};
 use crate::plot::{PanelAxes, canvas, distinct, log_log_panel, panel_legend, plot_error};
 
 /// `yarn-gate stress`: the stability map, or a soak.
@@ -38,7 +38,7 @@ pub struct StressArgs {
     #[arg(long, default_value = "8x8", value_parser = parse_size)]
     size: (usize, usize),
     /// Simulated seconds each stability trial runs.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = parse_seconds, allow_negative_numbers = true)]
     duration: f64,
     /// Bisection steps on the substep.
     #[arg(long, default_value_t = 8)]
