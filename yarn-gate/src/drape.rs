@@ -212,6 +212,8 @@ impl DrapeArgs {
         let colliders = [Collider::Plane(Plane::floor(0.0))];
         let params = drape_params(self.preset.params(), self.self_contact);
         check_drop(&Model::new(&fabric, &params)?, self.drop)?;
+        // Opened first: without one, nothing is draped only to be lost.
+        let gpu = Gpu::new().map_err(GateError::drawing)?;
         let start = drape_start(&fabric, self.fold, self.drop);
         let (report, positions) = with_bar(self.steps, SUBSTEPS, "draping", |bar| {
             with_backend(
@@ -236,7 +238,7 @@ impl DrapeArgs {
             elevation: self.elevation.to_radians(),
             zoom: 1.0,
         };
-        let frame = Renderer::new(&*Gpu::new()?)
+        let frame = Renderer::new(&gpu)
             .render(&positions, fabric.yarns(), radius, &view)
             .and_then(|frame| frame.save_png(&self.out).map(|()| frame))
             .map_err(|e| GateError::Render(e.to_string()))?;

@@ -50,6 +50,16 @@ pub enum GateError {
     /// No GPU could be opened.
     #[error(transparent)]
     Gpu(#[from] yarn_backend_wgpu::GpuError),
+    /// No GPU adapter to draw with: `render` and `drape` draw on a GPU
+    /// whichever backend simulates.
+    #[error(
+        "no GPU adapter found to draw the yarn ({reason}); drawing needs one whichever backend simulates. On Linux \
+         without a GPU, install lavapipe (`apt-get install mesa-vulkan-drivers`)"
+    )]
+    NoAdapterToDraw {
+        /// What wgpu said.
+        reason: String,
+    },
     /// A frame could not be drawn or saved (the renderer's message).
     #[error("{0}")]
     Render(String),
@@ -141,7 +151,20 @@ impl GateError {
     /// Whether the command stopped because there is no GPU adapter at all
     /// (see [`NO_ADAPTER_EXIT`]), not because a GPU failed.
     pub fn is_no_adapter(&self) -> bool {
-        matches!(self, GateError::Gpu(yarn_backend_wgpu::GpuError::NoAdapter { .. }))
+        matches!(
+            self,
+            GateError::Gpu(yarn_backend_wgpu::GpuError::NoAdapter { .. }) | GateError::NoAdapterToDraw { .. }
+        )
+    }
+
+    /// A GPU that could not be opened to draw with: no adapter is
+    /// [`GateError::NoAdapterToDraw`], whose advice is not to choose a CPU
+    /// backend.
+    pub(crate) fn drawing(error: yarn_backend_wgpu::GpuError) -> Self {
+        match error {
+            yarn_backend_wgpu::GpuError::NoAdapter { reason } => GateError::NoAdapterToDraw { reason },
+            other => GateError::Gpu(other),
+        }
     }
 
     /// The error with the gate's `phase` named, where it says where it

@@ -109,6 +109,8 @@ impl RenderArgs {
     pub fn run(&self) -> Result<Outcome, GateError> {
         let fabric = Fabric::from_chart(&self.pattern.chart(self.size)?, &self.preset.geometry())?;
         let params = self.preset.params();
+        // Opened first: without one, nothing is relaxed only to be lost.
+        let gpu = Gpu::new().map_err(GateError::drawing)?;
         let positions = if self.at_rest {
             at_rest(&fabric, &params)?
         } else {
@@ -125,7 +127,7 @@ impl RenderArgs {
             elevation: elevation.to_radians(),
             zoom: 1.0,
         };
-        let frame = Renderer::new(&*Gpu::new()?)
+        let frame = Renderer::new(&gpu)
             .render(&positions, fabric.yarns(), radius, &view)
             .and_then(|frame| frame.save_png(&self.out).map(|()| frame))
             .map_err(|e| GateError::Render(e.to_string()))?;

@@ -386,6 +386,41 @@ fn cli_without_an_adapter_says_what_to_install() {
     assert!(stderr.contains("CPU backend"), "{stderr}");
 }
 
+/// Regression: `render` and `drape` simulated first and opened the GPU to
+/// draw only after, so on a machine without an adapter a long run was lost
+/// at its end, with advice to choose a CPU backend that the run already
+/// used. They now open it first: asked for 10¹² substeps on `rayon`, which
+/// would run for days, each stops at once with the no-adapter exit code
+/// and advice for drawing.
+#[test]
+fn cli_render_and_drape_without_an_adapter_stop_before_they_simulate() {
+    if cfg!(target_os = "macos") {
+        return;
+    }
+    for command in ["render", "drape"] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
+            .args([command, "--backend", "rayon", "--steps", "1000000000000", "--out", "/nonexistent/x.png"])
+            .env("WGPU_BACKEND", "metal")
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("yarn-gate starts");
+        // A liveness bound, not a timing: the run it must not start would
+        // take days.
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+        while child.try_wait().unwrap().is_none() {
+            if std::time::Instant::now() > deadline {
+                child.kill().unwrap();
+                panic!("{command} simulated before opening the GPU to draw");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        let output = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(i32::from(yarn_gate::NO_ADAPTER_EXIT)), "{command}: {stderr}");
+        assert!(stderr.contains("to draw") && !stderr.contains("CPU backend"), "{command}: {stderr}");
+    }
+}
+
 /// A command's run without an adapter: the GPU's name is the warning's.
 fn without_an_adapter(args: &[&str]) -> (Output, String) {
     // Metal does not exist on Linux, so asking for it alone finds nothing.
