@@ -19,7 +19,9 @@ use yarn_topology::{Chart, Fabric, Geometry, Pattern, Pin, Side};
 
 use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
-use crate::cli::{Outcome, PATTERN_HELP, PatternArg, TIMED_RUNS, counts, parse_fraction, parse_pattern, with_bar};
+use crate::cli::{
+    Outcome, PATTERN_HELP, PatternArg, TIMED_RUNS, counts, parse_fraction, parse_pattern, parse_threads, with_bar,
+};
 use crate::preset::Preset;
 
 /// `yarn-gate bench`: time each backend at each size.
@@ -40,7 +42,7 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', default_value = "8,16,32,64")]
     sizes: Vec<usize>,
     /// Threads for the rayon backend; 0 uses one per core.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = parse_threads)]
     threads: usize,
     /// Timed runs per row; the median is reported.
     #[arg(long, default_value_t = 7)]

@@ -11,6 +11,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use yarn_topology::{Chart, Pattern, TopologyError};
 
+use crate::GateError;
+
 /// A progress bar's line when it counts substeps.
 pub(crate) const SUBSTEPS: &str = "{msg:>12} [{bar:40}] {pos}/{len} substeps ({eta})";
 
@@ -92,6 +94,23 @@ pub(crate) fn parse_fraction(text: &str) -> Result<f64, String> {
     parse_number(text, |fraction| (0.0..=1.0).contains(&fraction), "a fraction from 0 to 1")
 }
 
+/// The most threads `--threads` takes: far past the cores of any machine
+/// it measures, and each thread holds working memory of its own, so a
+/// slip of the keyboard (100,000) is refused rather than spent building a
+/// pool for minutes.
+pub(crate) const MAX_THREADS: usize = 1024;
+
+/// Parse a thread count, 0 (one per core) to [`MAX_THREADS`].
+///
+/// # Errors
+/// A message naming the text and the range, for anything else.
+pub(crate) fn parse_threads(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(threads) if threads <= MAX_THREADS => Ok(threads),
+        _ => Err(format!("`{text}` is not a thread count from 0 (one per core) to {MAX_THREADS}")),
+    }
+}
+
 /// Parse a distance, finite and not negative.
 ///
 /// # Errors
@@ -99,6 +118,30 @@ pub(crate) fn parse_fraction(text: &str) -> Result<f64, String> {
 /// no number.
 pub(crate) fn parse_distance(text: &str) -> Result<f64, String> {
     parse_number(text, |distance| distance >= 0.0, "a finite distance, 0 or more")
+}
+
+/// Parse an image size, `WIDTHxHEIGHT` in pixels ([`parse_size`]); how
+/// large the device draws is the renderer's to say.
+///
+/// # Errors
+/// As [`parse_size`], and a side past `u32`.
+pub(crate) fn parse_image(text: &str) -> Result<(u32, u32), String> {
+    let (width, height) = parse_size(text)?;
+    let side = |side: usize| u32::try_from(side).map_err(|_| format!("`{text}` has a side past {} pixels", u32::MAX));
+    Ok((side(width)?, side(height)?))
+}
+
+/// Refuse a file to be written into a folder that does not exist, before
+/// the run that would write it rather than after.
+///
+/// # Errors
+/// [`GateError::Io`] naming the file and its missing folder.
+pub(crate) fn check_folder(path: &Path) -> Result<(), GateError> {
+    let folder = path.parent().filter(|folder| !folder.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if folder.is_dir() {
+        return Ok(());
+    }
+    Err(GateError::io(path, format!("its folder {} does not exist", folder.display())))
 }
 
 /// The help of every command's `--pattern`. Each pattern name is spelled
@@ -211,6 +254,17 @@ mod tests {
     }
 
     #[test]
+    fn an_image_side_past_u32_is_refused_and_a_missing_folder_named() {
+        assert_eq!(parse_image("640x480"), Ok((640, 480)));
+        assert!(parse_image("4294967297x1").is_err_and(|message| message.contains("past")));
+        assert!(check_folder(Path::new("frame.png")).is_ok(), "the working folder");
+        assert!(check_folder(&std::env::temp_dir().join("frame.png")).is_ok());
+        let missing = std::env::temp_dir().join("yarnify-no-such-folder").join("frame.png");
+        let message = check_folder(&missing).unwrap_err().to_string();
+        assert!(message.contains("yarnify-no-such-folder") && message.contains("does not exist"), "{message}");
+    }
+
+    #[test]
     fn a_number_out_of_its_range_is_refused_by_name() {
         for bad in ["nan", "NaN", "inf", "-inf", "1e999", "", "two"] {
             let quoted = format!("`{bad}` is not ");
@@ -224,6 +278,8 @@ mod tests {
         assert!(parse_seconds("0").is_err() && parse_seconds("-1").is_err());
         assert_eq!((parse_fraction("0"), parse_fraction("1")), (Ok(0.0), Ok(1.0)));
         assert!(parse_fraction("1.01").is_err() && parse_fraction("-0.01").is_err());
+        assert_eq!((parse_threads("0"), parse_threads("1024")), (Ok(0), Ok(MAX_THREADS)));
+        assert!(parse_threads("1025").is_err() && parse_threads("-1").is_err() && parse_threads("2.5").is_err());
         assert_eq!(parse_distance("0"), Ok(0.0));
         assert!(parse_distance("-0.5").is_err());
     }

@@ -13,20 +13,21 @@ use std::path::PathBuf;
 
 use indicatif::ProgressBar;
 use serde::Serialize;
-use yarn_backend_wgpu::Gpu;
 use yarn_model::self_contact::Candidates;
 use yarn_model::step::segment_end;
 use yarn_model::terms::closest_gap;
 use yarn_model::{Backend, Collider, Model, Params, Plane, State, V3, widen};
-use yarn_render::{Renderer, View, tube_obj};
+use yarn_render::{View, tube_obj};
 use yarn_topology::Fabric;
 
 use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
 use crate::cli::{
-    Outcome, PATTERN_HELP, PatternArg, SUBSTEPS, parse_degrees, parse_distance, parse_pattern, parse_size, with_bar,
+    Outcome, PATTERN_HELP, PatternArg, SUBSTEPS, parse_degrees, parse_distance, parse_image, parse_pattern, parse_size,
+    with_bar,
 };
 use crate::preset::Preset;
+use crate::render::checked_renderer;
 
 /// Two segments closer than this, in yarn radii, count as passing into
 /// each other: a tenth of a radius inside the diameter the contact holds.
@@ -94,8 +95,8 @@ pub struct DrapeArgs {
     #[arg(long)]
     obj: Option<PathBuf>,
     /// Image size in pixels, WIDTHxHEIGHT.
-    #[arg(long, default_value = "1280x960", value_parser = parse_size)]
-    image: (usize, usize),
+    #[arg(long, default_value = "1280x960", value_parser = parse_image)]
+    image: (u32, u32),
     /// Camera rotation about the vertical axis, in degrees; 0 looks along
     /// the fold's crease, at its cross-section.
     #[arg(long, default_value_t = 20.0, value_parser = parse_degrees, allow_negative_numbers = true)]
@@ -212,8 +213,14 @@ impl DrapeArgs {
         let colliders = [Collider::Plane(Plane::floor(0.0))];
         let params = drape_params(self.preset.params(), self.self_contact);
         check_drop(&Model::new(&fabric, &params)?, self.drop)?;
-        // Opened first: without one, nothing is draped only to be lost.
-        let gpu = Gpu::new().map_err(GateError::drawing)?;
+        let view = View {
+            width: self.image.0,
+            height: self.image.1,
+            orbit: self.orbit.to_radians(),
+            elevation: self.elevation.to_radians(),
+            zoom: 1.0,
+        };
+        let renderer = checked_renderer(&view, &self.out, self.obj.as_deref())?;
         let start = drape_start(&fabric, self.fold, self.drop);
         let (report, positions) = with_bar(self.steps, SUBSTEPS, "draping", |bar| {
             with_backend(
@@ -231,14 +238,7 @@ impl DrapeArgs {
             )
         })?;
         let radius = fabric.yarn_radius() as f32;
-        let view = View {
-            width: self.image.0 as u32,
-            height: self.image.1 as u32,
-            orbit: self.orbit.to_radians(),
-            elevation: self.elevation.to_radians(),
-            zoom: 1.0,
-        };
-        let frame = Renderer::new(&gpu)
+        let frame = renderer
             .render(&positions, fabric.yarns(), radius, &view)
             .and_then(|frame| frame.save_png(&self.out).map(|()| frame))
             .map_err(|e| GateError::Render(e.to_string()))?;

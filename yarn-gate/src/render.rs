@@ -5,7 +5,7 @@
 //! drawing. How tubes are swept and shaded is `yarn_render`'s; it draws on
 //! its own GPU context whatever backend relaxed the patch.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
 use yarn_backend_wgpu::Gpu;
@@ -18,7 +18,10 @@ use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
 use crate::check::STATIC_BUDGET;
 use crate::check::rest::PROGRESS;
-use crate::cli::{Outcome, PATTERN_HELP, PatternArg, SUBSTEPS, parse_degrees, parse_pattern, parse_size, with_bar};
+use crate::cli::{
+    Outcome, PATTERN_HELP, PatternArg, SUBSTEPS, check_folder, parse_degrees, parse_image, parse_pattern, parse_size,
+    with_bar,
+};
 use crate::preset::Preset;
 use crate::settle::{Settle, Statics};
 
@@ -78,8 +81,8 @@ pub struct RenderArgs {
     #[arg(long)]
     obj: Option<PathBuf>,
     /// Image size in pixels, WIDTHxHEIGHT.
-    #[arg(long, default_value = "1280x960", value_parser = parse_size)]
-    image: (usize, usize),
+    #[arg(long, default_value = "1280x960", value_parser = parse_image)]
+    image: (u32, u32),
     /// The side to look at: `face` (the technical face, +z), `back` (from
     /// behind) or `edge` (edge-on along the course, to show thickness and
     /// curl). It sets the default --orbit and --elevation.
@@ -109,8 +112,8 @@ impl RenderArgs {
     pub fn run(&self) -> Result<Outcome, GateError> {
         let fabric = Fabric::from_chart(&self.pattern.chart(self.size)?, &self.preset.geometry())?;
         let params = self.preset.params();
-        // Opened first: without one, nothing is relaxed only to be lost.
-        let gpu = Gpu::new().map_err(GateError::drawing)?;
+        let view = self.view();
+        let renderer = checked_renderer(&view, &self.out, self.obj.as_deref())?;
         let positions = if self.at_rest {
             at_rest(&fabric, &params)?
         } else {
@@ -119,15 +122,7 @@ impl RenderArgs {
             })?
         };
         let radius = fabric.yarn_radius() as f32;
-        let (orbit, elevation) = self.angles();
-        let view = View {
-            width: self.image.0 as u32,
-            height: self.image.1 as u32,
-            orbit: orbit.to_radians(),
-            elevation: elevation.to_radians(),
-            zoom: 1.0,
-        };
-        let frame = Renderer::new(&gpu)
+        let frame = renderer
             .render(&positions, fabric.yarns(), radius, &view)
             .and_then(|frame| frame.save_png(&self.out).map(|()| frame))
             .map_err(|e| GateError::Render(e.to_string()))?;
@@ -147,6 +142,28 @@ impl RenderArgs {
         let (orbit, elevation) = self.side.angles();
         (self.orbit.unwrap_or(orbit), self.elevation.unwrap_or(elevation))
     }
+
+    fn view(&self) -> View {
+        let (orbit, elevation) = self.angles();
+        let (width, height) = self.image;
+        View { width, height, orbit: orbit.to_radians(), elevation: elevation.to_radians(), zoom: 1.0 }
+    }
+}
+
+/// A renderer for `view`, once the GPU, the image size and the folders of
+/// the PNG `out` and the mesh `obj` are known good: `render` and `drape`
+/// check them before they simulate, so that no run is made only to be
+/// lost.
+///
+/// # Errors
+/// No adapter ([`GateError::NoAdapterToDraw`]) or another GPU failure, an
+/// image size the device cannot draw, a folder that does not exist.
+pub(crate) fn checked_renderer(view: &View, out: &Path, obj: Option<&Path>) -> Result<Renderer, GateError> {
+    let renderer = Renderer::new(&*Gpu::new().map_err(GateError::drawing)?);
+    renderer.check_size(view).map_err(|e| GateError::Render(e.to_string()))?;
+    check_folder(out)?;
+    obj.map_or(Ok(()), check_folder)?;
+    Ok(renderer)
 }
 
 /// The positions of `fabric` at the rest `check` certifies, by its static

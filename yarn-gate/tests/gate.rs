@@ -386,38 +386,57 @@ fn cli_without_an_adapter_says_what_to_install() {
     assert!(stderr.contains("CPU backend"), "{stderr}");
 }
 
-/// Regression: `render` and `drape` simulated first and opened the GPU to
-/// draw only after, so on a machine without an adapter a long run was lost
-/// at its end, with advice to choose a CPU backend that the run already
-/// used. They now open it first: asked for 10¹² substeps on `rayon`, which
-/// would run for days, each stops at once with the no-adapter exit code
-/// and advice for drawing.
-#[test]
-fn cli_render_and_drape_without_an_adapter_stop_before_they_simulate() {
-    if cfg!(target_os = "macos") {
-        return;
+/// Run `yarn-gate` with `args` (and `WGPU_BACKEND=metal` where
+/// `no_adapter`), and return its exit code and stderr once it ends, failing
+/// if it runs past two minutes: a liveness bound, not a timing, for
+/// commands asked for a run that would take days and expected to refuse
+/// it at once.
+fn refused_at_once(args: &[&str], no_adapter: bool) -> (Option<i32>, String) {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_yarn-gate"));
+    command.args(args).stderr(std::process::Stdio::piped());
+    if no_adapter {
+        command.env("WGPU_BACKEND", "metal");
     }
-    for command in ["render", "drape"] {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
-            .args([command, "--backend", "rayon", "--steps", "1000000000000", "--out", "/nonexistent/x.png"])
-            .env("WGPU_BACKEND", "metal")
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .expect("yarn-gate starts");
-        // A liveness bound, not a timing: the run it must not start would
-        // take days.
-        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
-        while child.try_wait().unwrap().is_none() {
-            if std::time::Instant::now() > deadline {
-                child.kill().unwrap();
-                panic!("{command} simulated before opening the GPU to draw");
-            }
-            std::thread::sleep(std::time::Duration::from_millis(50));
+    let mut child = command.spawn().expect("yarn-gate starts");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    while child.try_wait().expect("the child can be polled").is_none() {
+        if std::time::Instant::now() > deadline {
+            child.kill().expect("the child can be killed");
+            panic!("{args:?} ran the simulation before finding it could not draw or save it");
         }
-        let output = child.wait_with_output().unwrap();
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert_eq!(output.status.code(), Some(i32::from(yarn_gate::NO_ADAPTER_EXIT)), "{command}: {stderr}");
-        assert!(stderr.contains("to draw") && !stderr.contains("CPU backend"), "{command}: {stderr}");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let output = child.wait_with_output().expect("the child's output can be read");
+    (output.status.code(), String::from_utf8_lossy(&output.stderr).into_owned())
+}
+
+/// Regression: `render` and `drape` simulated first and only then opened
+/// the GPU, checked the image size and wrote the files, so a long run was
+/// lost at its end for want of an adapter (with advice to choose a CPU
+/// backend that the run already used), a bad `--image` or a missing
+/// folder. Asked for 10¹² substeps on `rayon`, which would run for days,
+/// each now stops at once with the error.
+#[test]
+fn cli_render_and_drape_refuse_what_they_cannot_draw_or_save_before_they_simulate() {
+    let days = ["--backend", "rayon", "--size", "3x3", "--steps", "1000000000000"];
+    for command in ["render", "drape"] {
+        let with = |extra: &[&'static str]| [&[command][..], &days, extra].concat();
+        if !cfg!(target_os = "macos") {
+            let (code, stderr) = refused_at_once(&with(&["--out", "/nonexistent/x.png"]), true);
+            assert_eq!(code, Some(i32::from(yarn_gate::NO_ADAPTER_EXIT)), "{command}: {stderr}");
+            assert!(stderr.contains("to draw") && !stderr.contains("CPU backend"), "{command}: {stderr}");
+        }
+        let (code, stderr) = refused_at_once(&with(&["--out", "/nonexistent/folder/x.png"]), false);
+        if code == Some(i32::from(yarn_gate::NO_ADAPTER_EXIT)) {
+            yarn_backend_wgpu::testing::skip(&stderr);
+            return;
+        }
+        assert_eq!(code, Some(2), "{command}: {stderr}");
+        assert!(stderr.contains("/nonexistent/folder does not exist"), "{command}: {stderr}");
+        let (code, stderr) = refused_at_once(&with(&["--obj", "/nonexistent/folder/x.obj"]), false);
+        assert!(code == Some(2) && stderr.contains("/nonexistent/folder does not exist"), "{command}: {stderr}");
+        let (code, stderr) = refused_at_once(&with(&["--image", "0x480"]), false);
+        assert!(code == Some(2) && stderr.contains("outside 1..="), "{command}: {stderr}");
     }
 }
 

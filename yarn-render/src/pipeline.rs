@@ -183,8 +183,13 @@ impl Renderer {
         Ok(())
     }
 
-    /// The image size of `view` is 1..= the device's texture limit a side.
-    pub(crate) fn check_size(&self, view: &View) -> Result<(), RenderError> {
+    /// Whether this device can draw `view`'s image size: 1 to its largest
+    /// texture side, a side. Drawing checks it too; a caller about to run
+    /// long before it draws can check first.
+    ///
+    /// # Errors
+    /// [`RenderError::BadSize`], naming the device's limit.
+    pub fn check_size(&self, view: &View) -> Result<(), RenderError> {
         let limit = self.device.limits().max_texture_dimension_2d;
         if !(1..=limit).contains(&view.width) || !(1..=limit).contains(&view.height) {
             return Err(RenderError::BadSize { width: view.width, height: view.height, limit });
