@@ -20,7 +20,8 @@ use yarn_topology::{Chart, Fabric, Geometry, Pattern, Pin, Side};
 use crate::GateError;
 use crate::backends::{BackendWork, with_backend};
 use crate::cli::{
-    Outcome, PATTERN_HELP, PatternArg, TIMED_RUNS, counts, parse_fraction, parse_pattern, parse_threads, with_bar,
+    Outcome, PATTERN_HELP, PatternArg, TIMED_RUNS, counts, parse_fraction, parse_pattern, parse_repeats, parse_threads,
+    with_bar,
 };
 use crate::preset::Preset;
 
@@ -45,7 +46,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 0, value_parser = parse_threads)]
     threads: usize,
     /// Timed runs per row; the median is reported.
-    #[arg(long, default_value_t = 7)]
+    #[arg(long, default_value_t = 7, value_parser = parse_repeats)]
     repeats: usize,
     /// Friction coefficient μ of the scene; 0 turns the friction pass off
     /// [default: the model's default].
@@ -122,7 +123,7 @@ impl BenchArgs {
         let config = BenchConfig {
             charts,
             geometry,
-            repeats: self.repeats.max(1),
+            repeats: self.repeats,
             params,
             pin_top: self.pin_top,
             dead: self.dead,
@@ -380,12 +381,16 @@ pub(crate) fn median(values: impl Iterator<Item = f64>) -> f64 {
 /// total)` counts timed runs, the stage-timed ones among them.
 ///
 /// # Errors
-/// [`GateError`] for a bad size or a backend failure.
+/// [`GateError`] for a bad size or a backend failure, and
+/// [`GateError::NoTimedRuns`] for `repeats` 0.
 pub fn bench<B: Backend>(
     backend: &mut B,
     config: &BenchConfig,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<BenchRow>, GateError> {
+    if config.repeats == 0 {
+        return Err(GateError::NoTimedRuns);
+    }
     let stage_calls = if config.stages { config.repeats } else { 0 };
     let total = (config.charts.len() * (config.repeats + stage_calls)) as u64;
     let mut done = 0;
@@ -600,6 +605,9 @@ mod tests {
                 work_per_run: 2_000,
                 ..BenchConfig::default()
             };
+            let no_runs = BenchConfig { repeats: 0, ..config.clone() };
+            let refused = bench(&mut yarn_backend_cpu::Serial::<f32>::new(), &no_runs, &mut |_, _| {});
+            assert_eq!(refused, Err(GateError::NoTimedRuns));
             let rows = bench(&mut yarn_backend_cpu::Serial::<f32>::new(), &config, &mut |_, _| {}).unwrap();
             let [row] = rows.as_slice() else { panic!("one chart, one row: {rows:?}") };
             assert_eq!(row.stitches, chart.width() * chart.height());

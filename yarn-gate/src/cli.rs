@@ -111,6 +111,17 @@ pub(crate) fn parse_threads(text: &str) -> Result<usize, String> {
     }
 }
 
+/// Parse a count of timed runs, 1 or more.
+///
+/// # Errors
+/// A message naming the text, for 0 or anything but a whole number.
+pub(crate) fn parse_repeats(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(repeats) if repeats >= 1 => Ok(repeats),
+        _ => Err(format!("`{text}` is not a count of runs, 1 or more")),
+    }
+}
+
 /// Parse a distance, finite and not negative.
 ///
 /// # Errors
@@ -280,6 +291,8 @@ mod tests {
         assert!(parse_fraction("1.01").is_err() && parse_fraction("-0.01").is_err());
         assert_eq!((parse_threads("0"), parse_threads("1024")), (Ok(0), Ok(MAX_THREADS)));
         assert!(parse_threads("1025").is_err() && parse_threads("-1").is_err() && parse_threads("2.5").is_err());
+        assert_eq!((parse_repeats("1"), parse_repeats("7")), (Ok(1), Ok(7)));
+        assert!(parse_repeats("0").is_err() && parse_repeats("-1").is_err());
         assert_eq!(parse_distance("0"), Ok(0.0));
         assert!(parse_distance("-0.5").is_err());
     }

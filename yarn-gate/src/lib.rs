@@ -132,6 +132,10 @@ pub enum GateError {
         /// The highest drop whose fall stays under it.
         highest: f64,
     },
+    /// A benchmark asked for no timed runs, which leave no median to
+    /// report.
+    #[error("a benchmark needs at least one timed run; `repeats` is 0")]
+    NoTimedRuns,
     /// The backend name is not known.
     #[error("unknown backend `{name}`; choose one of: {known}")]
     UnknownBackend {

@@ -31,7 +31,9 @@ use yarn_topology::{Chart, Fabric, Geometry, Pin, Side};
 use crate::GateError;
 use crate::backends::{BackendWork, for_each_backend, left_out_warning};
 use crate::bench::median;
-use crate::cli::{Outcome, PATTERN_HELP, PatternArg, parse_pattern, parse_seconds, parse_size, with_bar};
+use crate::cli::{
+    Outcome, PATTERN_HELP, PatternArg, parse_pattern, parse_repeats, parse_seconds, parse_size, with_bar,
+};
 use crate::plot::{PanelAxes, canvas, distinct, log_log_panel, panel_legend, plot_error};
 use crate::preset::Preset;
 
@@ -63,7 +65,7 @@ pub struct ParetoArgs {
     #[arg(long, value_delimiter = ',', default_value = "2,3,5,10,20,40")]
     substeps: Vec<u32>,
     /// Timed runs per configuration; the median wall time is reported.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = parse_repeats)]
     repeats: usize,
     /// Self-contact stiffness k_sc of the model [default: the preset's].
     /// With it on, the reference runs with it, and every configuration
@@ -134,7 +136,7 @@ impl ParetoArgs {
     /// times.
     fn runs_per_backend(&self) -> usize {
         let variants = if self.self_contact.is_some_and(|k| k > 0.0) { 2 } else { 1 };
-        Problem::ALL.len() * self.substeps.len() * self.repeats.max(1) * variants
+        Problem::ALL.len() * self.substeps.len() * self.repeats * variants
     }
 
     /// Each problem's reference run, and how far the reference is from
@@ -256,7 +258,7 @@ impl Sweep<'_> {
             for (problem, reference) in Problem::ALL.into_iter().zip(self.references) {
                 self.bar.set_message(format!("{name} {}", problem.name()));
                 let mut runs = Vec::new();
-                for _ in 0..self.args.repeats.max(1) {
+                for _ in 0..self.args.repeats {
                     runs.push(match run(backend, problem, patch, self.ticks, per_tick, CHECKPOINTS) {
                         Ok(measured) => measured,
                         // An h the parameters refuse: a failed configuration.

@@ -18,6 +18,8 @@ const REFUSED: &[(&[&str], &str)] = &[
     (&["bench", "--dead", "2"], "a fraction from 0 to 1"),
     (&["bench", "--dead", "-0.5"], "a fraction from 0 to 1"),
     (&["bench", "--threads", "100000"], "a thread count from 0 (one per core) to 1024"),
+    (&["bench", "--repeats", "0"], "a count of runs, 1 or more"),
+    (&["pareto", "--repeats", "0"], "a count of runs, 1 or more"),
     (&["pareto", "--duration", "0"], "a finite number of seconds above 0"),
     (&["stress", "--duration", "-1"], "a finite number of seconds above 0"),
 ];
