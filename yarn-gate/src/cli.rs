@@ -122,6 +122,17 @@ pub(crate) fn parse_repeats(text: &str) -> Result<usize, String> {
     }
 }
 
+/// Parse a count of substeps per control tick, 1 or more.
+///
+/// # Errors
+/// A message naming the text, for 0 or anything but a whole number.
+pub(crate) fn parse_substeps(text: &str) -> Result<u32, String> {
+    match text.trim().parse::<u32>() {
+        Ok(substeps) if substeps >= 1 => Ok(substeps),
+        _ => Err(format!("`{text}` is not a count of substeps per tick, 1 or more")),
+    }
+}
+
 /// Parse a distance, finite and not negative.
 ///
 /// # Errors
@@ -293,6 +304,8 @@ mod tests {
         assert!(parse_threads("1025").is_err() && parse_threads("-1").is_err() && parse_threads("2.5").is_err());
         assert_eq!((parse_repeats("1"), parse_repeats("7")), (Ok(1), Ok(7)));
         assert!(parse_repeats("0").is_err() && parse_repeats("-1").is_err());
+        assert_eq!(parse_substeps("10"), Ok(10));
+        assert!(parse_substeps("0").is_err() && parse_substeps("1.5").is_err());
         assert_eq!(parse_distance("0"), Ok(0.0));
         assert!(parse_distance("-0.5").is_err());
     }

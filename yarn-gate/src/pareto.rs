@@ -32,7 +32,8 @@ use crate::GateError;
 use crate::backends::{BackendWork, for_each_backend, left_out_warning};
 use crate::bench::median;
 use crate::cli::{
-    Outcome, PATTERN_HELP, PatternArg, parse_pattern, parse_repeats, parse_seconds, parse_size, with_bar,
+    Outcome, PATTERN_HELP, PatternArg, parse_pattern, parse_repeats, parse_seconds, parse_size, parse_substeps,
+    with_bar,
 };
 use crate::plot::{PanelAxes, canvas, distinct, log_log_panel, panel_legend, plot_error};
 use crate::preset::Preset;
@@ -62,7 +63,7 @@ pub struct ParetoArgs {
     duration: f64,
     /// Substeps per 1/150 s control tick to try, comma-separated: h =
     /// 1/(150 N) s, so 10 is the paper's 1/1500.
-    #[arg(long, value_delimiter = ',', default_value = "2,3,5,10,20,40")]
+    #[arg(long, value_delimiter = ',', default_value = "2,3,5,10,20,40", value_parser = parse_substeps)]
     substeps: Vec<u32>,
     /// Timed runs per configuration; the median wall time is reported.
     #[arg(long, default_value_t = 3, value_parser = parse_repeats)]
@@ -253,7 +254,6 @@ impl Sweep<'_> {
     ) -> Result<Vec<ParetoRow>, GateError> {
         let mut rows = Vec::new();
         for &per_tick in &self.args.substeps {
-            let per_tick = per_tick.max(1);
             let h = CONTROL / f64::from(per_tick);
             for (problem, reference) in Problem::ALL.into_iter().zip(self.references) {
                 self.bar.set_message(format!("{name} {}", problem.name()));

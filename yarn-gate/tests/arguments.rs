@@ -20,6 +20,7 @@ const REFUSED: &[(&[&str], &str)] = &[
     (&["bench", "--threads", "100000"], "a thread count from 0 (one per core) to 1024"),
     (&["bench", "--repeats", "0"], "a count of runs, 1 or more"),
     (&["pareto", "--repeats", "0"], "a count of runs, 1 or more"),
+    (&["pareto", "--substeps", "5,0"], "a count of substeps per tick, 1 or more"),
     (&["pareto", "--duration", "0"], "a finite number of seconds above 0"),
     (&["stress", "--duration", "-1"], "a finite number of seconds above 0"),
 ];
