@@ -116,10 +116,7 @@ pub(crate) fn parse_threads(text: &str) -> Result<usize, String> {
 /// # Errors
 /// A message naming the text, for 0 or anything but a whole number.
 pub(crate) fn parse_repeats(text: &str) -> Result<usize, String> {
-    match text.trim().parse::<usize>() {
-        Ok(repeats) if repeats >= 1 => Ok(repeats),
-        _ => Err(format!("`{text}` is not a count of runs, 1 or more")),
-    }
+    parse_count(text, "a count of runs, 1 or more")
 }
 
 /// Parse a count of substeps per control tick, 1 or more.
@@ -127,9 +124,15 @@ pub(crate) fn parse_repeats(text: &str) -> Result<usize, String> {
 /// # Errors
 /// A message naming the text, for 0 or anything but a whole number.
 pub(crate) fn parse_substeps(text: &str) -> Result<u32, String> {
-    match text.trim().parse::<u32>() {
-        Ok(substeps) if substeps >= 1 => Ok(substeps),
-        _ => Err(format!("`{text}` is not a count of substeps per tick, 1 or more")),
+    parse_count(text, "a count of substeps per tick, 1 or more")
+}
+
+/// A whole number, 1 or more; otherwise a message that the text is not
+/// `what`.
+fn parse_count<N: std::str::FromStr + From<u8> + PartialOrd>(text: &str, what: &str) -> Result<N, String> {
+    match text.trim().parse::<N>() {
+        Ok(count) if count >= N::from(1) => Ok(count),
+        _ => Err(format!("`{text}` is not {what}")),
     }
 }
 
