@@ -182,18 +182,17 @@ fn segment_pushes(s: u32, end: u32, marked: ptr<function, u32>) -> Sums {
     return sums;
 }
 
-// Store how many pairs push node i from the segment it starts (`started`)
-// and from the one it ends (`ended`), which friction's pass reads
-// (`pushing_at`).
+// Store how many pairs push node i: those of the segment it starts
+// (`started`) and of the one it ends (`ended`), summed once here so that
+// friction's pass reads one word a node (`pushing_at`).
 fn store_pushing(i: u32, started: f32, ended: f32) {
-    lists[field_at(i, PUSHED)] = bitcast<u32>(started);
-    lists[field_at(i, PUSHED + 1u)] = bitcast<u32>(ended);
+    lists[field_at(i, PUSHED)] = bitcast<u32>(started + ended);
 }
 
-// How many pairs push node i: those of the segment it starts and of the one
-// it ends, as the gather's pass counted them (`step::pushing_pairs`).
+// How many pairs push node i, as the gather's pass counted them
+// (`step::pushing_pairs`).
 fn pushing_at(i: u32) -> f32 {
-    return bitcast<f32>(lists[field_at(i, PUSHED)]) + bitcast<f32>(lists[field_at(i, PUSHED + 1u)]);
+    return bitcast<f32>(lists[field_at(i, PUSHED)]);
 }
 
 // Where node i's velocity is final (after friction, or v* without it):

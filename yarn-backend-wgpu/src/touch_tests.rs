@@ -478,3 +478,69 @@ fn sharing_of(m: u32) -> f32 { return f32(1u + m % 7u); }";
     assert!(touching > cases / 4 && touching < cases, "{touching} of {cases} in reach");
     assert!(wrong.values().all(|&n| n == 0), "mismatches: {wrong:?}");
 }
+
+/// Cache lines of positions (16 bytes a node, 128-byte lines) a warp of 32
+/// segments loads in the forces pass for its partners, with nodes in yarn
+/// order (as the GPU keeps them) and in the Morton order of their
+/// positions (cells of one yarn radius), and the share of a warp's lanes
+/// busy while its longest list is walked. No GPU is needed:
+/// `cargo test --release -p yarn-backend-wgpu -- --ignored --nocapture measure_the_lines_a_warp_loads`.
+#[test]
+#[ignore = "a measurement, printed"]
+fn measure_the_lines_a_warp_loads() {
+    use std::collections::HashSet;
+    const WARP: usize = 32;
+    const NODES_A_LINE: usize = 8;
+    let params = Params { self_contact_stiffness: 1600.0, ..Params::default() };
+    for size in [16, 64, 208] {
+        let fabric = Fabric::from_chart(&Chart::stockinette(size, size).unwrap(), &Geometry::default()).unwrap();
+        let model = yarn_model::Model::<f32>::new(&fabric, &params).unwrap();
+        let x = State::<f32>::at_rest(&fabric).positions;
+        let lists = grid::lists(&model, &x).unwrap();
+        let end = |a: usize| yarn_model::step::segment_end(&model, a);
+        let low = x.iter().fold(V3::repeat(f32::MAX), |m, p| m.inf(p));
+        let morton = |p: &V3<f32>| {
+            let cell = (p - low) / fabric.yarn_radius() as f32;
+            (0..21).fold(0u64, |m, bit| {
+                (0..3).fold(m, |m, axis| m | ((((cell[axis] as u64) >> bit) & 1) << (3 * bit + axis)))
+            })
+        };
+        let mut by_space: Vec<usize> = (0..x.len()).collect();
+        by_space.sort_by_key(|&i| morton(&x[i]));
+        let slots: usize = lists.iter().map(Vec::len).sum();
+        println!("{size}x{size}: {} nodes, {:.2} candidates a segment", x.len(), slots as f64 / x.len() as f64);
+        for (name, order) in [("yarn", (0..x.len()).collect::<Vec<_>>()), ("Morton", by_space)] {
+            let mut place = vec![0; x.len()];
+            for (k, &i) in order.iter().enumerate() {
+                place[i] = k;
+            }
+            let line = |i: usize| place[i] / NODES_A_LINE;
+            let (mut own, mut partners, mut by_slot, mut steps, mut busy) = (0, 0, 0, 0, 0);
+            for warp in order.chunks(WARP) {
+                own += warp.iter().flat_map(|&s| [line(s), line(end(s))]).collect::<HashSet<_>>().len();
+                let longest = warp.iter().map(|&s| lists[s].len()).max().unwrap_or(0);
+                let mut all = HashSet::new();
+                for k in 0..longest {
+                    let lines: HashSet<usize> = warp
+                        .iter()
+                        .filter_map(|&s| lists[s].get(k))
+                        .flat_map(|&j| [line(j as usize), line(end(j as usize))])
+                        .collect();
+                    by_slot += lines.len();
+                    all.extend(lines);
+                }
+                partners += all.len();
+                steps += longest;
+                busy += warp.iter().map(|&s| lists[s].len()).sum::<usize>();
+            }
+            let warps = x.len().div_ceil(WARP) as f64;
+            println!(
+                "  {name:>6} order, a warp: {:.1} lines of its own, {:.1} of its partners' ({:.1} a slot), {:.0} % of lanes busy",
+                own as f64 / warps,
+                partners as f64 / warps,
+                by_slot as f64 / steps as f64,
+                100.0 * busy as f64 / (steps * WARP) as f64
+            );
+        }
+    }
+}
