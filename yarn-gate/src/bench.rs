@@ -65,10 +65,13 @@ pub struct BenchArgs {
     /// Let blocks of nodes slower than this sleep (CPU backends; 0: never).
     #[arg(long, default_value_t = 0.0)]
     sleep: f64,
-    /// Self-contact stiffness k_sc of the scene; 0 turns it off
-    /// [default: the model's default].
-    #[arg(long)]
-    self_contact: Option<f64>,
+    /// Self-contact stiffness k_sc of the scene, 0 for off, or several,
+    /// comma-separated: each backend is then timed at each in turn, and a
+    /// row with self-contact on is priced against the row without it, of
+    /// the same backend and size, in its scene column (`cost=`) and its
+    /// `self_contact_cost` [default: the model's default].
+    #[arg(long, value_delimiter = ',')]
+    self_contact: Vec<f64>,
     /// The self-contact lists' skin, in yarn radii: a wider one rebuilds
     /// them less often and holds more far pairs [default: the model's
     /// default].
@@ -105,9 +108,13 @@ impl BenchArgs {
             friction: self.friction.unwrap_or(defaults.friction),
             gravity: self.gravity,
             sleep_speed: self.sleep,
-            self_contact_stiffness: self.self_contact.unwrap_or(defaults.self_contact_stiffness),
             self_contact_skin: self.skin.unwrap_or(defaults.self_contact_skin),
             ..defaults
+        };
+        let stiffnesses = if self.self_contact.is_empty() {
+            vec![defaults.self_contact_stiffness]
+        } else {
+            self.self_contact.clone()
         };
         let charts = match &self.pattern {
             PatternArg::File(path) => vec![Chart::from_file(path)?],
@@ -131,13 +138,14 @@ impl BenchArgs {
             stages: self.stages,
             ..BenchConfig::default()
         };
-        let mut benchmark = Benchmark { config: &config };
-        let rows = self
-            .backend
-            .iter()
-            .map(|name| with_backend(name, self.threads, &mut benchmark))
-            .collect::<Result<Vec<_>, _>>()?
-            .concat();
+        let mut rows = Vec::new();
+        for name in &self.backend {
+            for &self_contact_stiffness in &stiffnesses {
+                let config = BenchConfig { params: Params { self_contact_stiffness, ..params }, ..config.clone() };
+                rows.extend(with_backend(name, self.threads, &mut Benchmark { config: &config })?);
+            }
+        }
+        price_self_contact(&mut rows);
         if self.backend.iter().any(|b| b.starts_with("wgpu")) {
             // The memory-bound ceiling, measured in the same run.
             if let Err(e) = print_gpu_floors(&rows) {
@@ -292,6 +300,11 @@ pub struct BenchRow {
     /// where the backend may be.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub late_reruns: Option<u64>,
+    /// With self-contact on, this row's time over that of the row without
+    /// it of the same backend, threads and patch, where the same run timed
+    /// one (`bench --self-contact 0,K`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub self_contact_cost: Option<f64>,
     /// Where the substeps' time went, pass by pass, when
     /// [`BenchConfig::stages`] asked.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -463,6 +476,7 @@ pub fn bench<B: Backend>(
             self_contact: config.params.self_contact_stiffness,
             builds_per_1000,
             late_reruns,
+            self_contact_cost: None,
             stages: StageReport::median_of(&calls),
         });
     }
@@ -513,10 +527,24 @@ pub fn table(rows: &[BenchRow]) -> String {
             if let Some(reruns) = r.late_reruns {
                 out += &format!(" late={reruns}");
             }
+            if let Some(cost) = r.self_contact_cost {
+                out += &format!(" cost={cost:.2}x");
+            }
             out.push('\n');
         }
     }
     out
+}
+
+/// Set [`BenchRow::self_contact_cost`] of each row with self-contact on,
+/// against the row without it of the same backend, threads and patch.
+fn price_self_contact(rows: &mut [BenchRow]) {
+    let same_patch = |a: &BenchRow, b: &BenchRow| (&a.backend, a.threads, &a.size) == (&b.backend, b.threads, &b.size);
+    let off: Vec<BenchRow> = rows.iter().filter(|r| r.self_contact == 0.0).cloned().collect();
+    for row in rows.iter_mut().filter(|r| r.self_contact > 0.0) {
+        row.self_contact_cost =
+            off.iter().find(|o| same_patch(o, row)).map(|o| row.ns_per_node_substep / o.ns_per_node_substep);
+    }
 }
 
 /// The rows' stage reports as tables, one block per backend and size
@@ -623,10 +651,10 @@ mod tests {
         }
     }
 
-    #[test]
-    fn the_stage_table_has_a_block_per_row_that_has_stages() {
-        let row = |stages| BenchRow {
-            backend: "serial-f32".into(),
+    /// A 3x3 row of `backend`, 1 ns a node-substep unless set otherwise.
+    fn row(backend: &str, stages: Option<StageReport>) -> BenchRow {
+        BenchRow {
+            backend: backend.into(),
             threads: 1,
             size: "3x3".into(),
             stitches: 9,
@@ -646,13 +674,47 @@ mod tests {
             self_contact: 0.0,
             builds_per_1000: None,
             late_reruns: None,
+            self_contact_cost: None,
             stages,
-        };
+        }
+    }
+
+    #[test]
+    fn the_stage_table_has_a_block_per_row_that_has_stages() {
+        let row = |stages| row("serial-f32", stages);
         assert_eq!(stages_table(&[row(None)]), "");
         let text = stages_table(&[row(StageReport::median_of(&[call(1e-3, Some(1e-4), 5e-3)])), row(None)]);
         assert_eq!(text.matches("stages of serial-f32 at 3x3 (72 nodes), by cpu timers").count(), 1, "{text}");
         assert!(text.contains("forces+move") && text.contains("  note: n\n"), "{text}");
         let without = serde_json::to_value(row(None)).expect("serialises");
         assert!(without.get("stages").is_none(), "{without}");
+    }
+
+    /// A row with self-contact is priced against the row without it of
+    /// the same backend and patch, and only where the run timed one.
+    #[test]
+    fn self_contact_is_priced_against_the_same_patch_without_it() {
+        let timed = |backend: &str, size: &str, self_contact: f64, ns: f64| BenchRow {
+            size: size.into(),
+            self_contact,
+            ns_per_node_substep: ns,
+            ..row(backend, None)
+        };
+        let mut rows = vec![
+            timed("rayon", "3x3", 0.0, 2.0),
+            timed("rayon", "3x3", 1600.0, 5.0),
+            timed("rayon", "4x4", 0.0, 4.0),
+            timed("rayon", "4x4", 800.0, 6.0),
+            timed("serial-f32", "3x3", 1600.0, 9.0),
+        ];
+        price_self_contact(&mut rows);
+        let costs: Vec<Option<f64>> = rows.iter().map(|r| r.self_contact_cost).collect();
+        assert_eq!(costs, [None, Some(2.5), None, Some(1.5), None], "no serial-f32 row without self-contact");
+        let text = table(&rows);
+        assert_eq!(text.matches(" cost=").count(), 2, "{text}");
+        assert!(text.contains("k_sc=1600 cost=2.50x") && text.contains("k_sc=800 cost=1.50x"), "{text}");
+        let json = serde_json::to_value(&rows).expect("serialises");
+        assert_eq!(json[1]["self_contact_cost"], 2.5);
+        assert!(json[0].get("self_contact_cost").is_none(), "{}", json[0]);
     }
 }

@@ -388,6 +388,7 @@ mod tests {
             self_contact: 0.0,
             builds_per_1000: None,
             late_reruns: None,
+            self_contact_cost: None,
             stages: None,
         };
         let rows = [row("a", 512, 1e5), row("a", 2048, 2.5e4), row("b", 512, 2e5), row("b", 2048, 1e5)];

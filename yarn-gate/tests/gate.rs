@@ -211,6 +211,35 @@ fn cli_bench_json_has_a_row_per_backend_and_size() {
     assert!(rows.iter().all(|row| row.get("stages").is_none()), "stages only with --stages");
 }
 
+/// `bench --self-contact 0,K` times each backend without self-contact and
+/// then with it, and prices the second row against the first.
+#[test]
+fn cli_bench_prices_self_contact_against_the_patch_without_it() {
+    let output = Command::new(env!("CARGO_BIN_EXE_yarn-gate"))
+        .args([
+            "bench",
+            "--backend",
+            "serial-f32",
+            "--sizes",
+            "2",
+            "--repeats",
+            "1",
+            "--self-contact",
+            "0,800",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let rows: Vec<serde_json::Value> = serde_json::from_slice(&output.stdout).expect("stdout is a JSON array");
+    let stiffness: Vec<f64> = rows.iter().map(|row| row["self_contact"].as_f64().unwrap()).collect();
+    assert_eq!(stiffness, [0.0, 800.0], "{rows:?}");
+    assert!(rows[0].get("self_contact_cost").is_none(), "{}", rows[0]);
+    let ns = |row: &serde_json::Value| row["ns_per_node_substep"].as_f64().unwrap();
+    let cost = rows[1]["self_contact_cost"].as_f64().expect("the row with self-contact is priced");
+    assert!((cost - ns(&rows[1]) / ns(&rows[0])).abs() <= 1e-12 * cost, "{cost} for {rows:?}");
+}
+
 /// `bench --stages` on the CPU backends: each row says, pass by pass, where
 /// its substeps' time went by the CPU's timers; with the top row pinned,
 /// the pins pass runs too.
