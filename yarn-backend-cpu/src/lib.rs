@@ -335,6 +335,39 @@ mod tests {
         }
     }
 
+    /// What a substep computes does not depend on when the candidate list
+    /// was built or its near list refreshed: a skin of 0.1 r rebuilds and
+    /// refreshes at other substeps than one of 2 r, and a patch dropped on
+    /// itself follows the same trajectory, bit for bit, on `Serial` and
+    /// `Rayon`.
+    #[test]
+    fn cpu_trajectories_do_not_depend_on_the_skin() {
+        let fabric = Fabric::from_chart(&Chart::stockinette(4, 4).unwrap(), &Geometry::default()).unwrap();
+        fn drop_with<B: Backend>(mut backend: B, fabric: &Fabric, skin: f64) -> (State<f64>, u64) {
+            let params =
+                Params { self_contact_stiffness: 800.0, self_contact_skin: skin, gravity: 200.0, ..Params::default() };
+            backend.load(fabric, &params).unwrap();
+            backend.set_pins(&[]).unwrap();
+            let mut state = backend.state().unwrap();
+            for v in state.velocities.iter_mut().step_by(5) {
+                *v = V3::new(B::Real::of(0.0), B::Real::of(0.0), B::Real::of(30.0));
+            }
+            backend.write_state(&state).unwrap();
+            backend.advance(300).unwrap();
+            (backend.state().unwrap().cast(), backend.self_contact_builds().unwrap())
+        }
+        let (thin, thin_builds) = drop_with(Serial::<f32>::new(), &fabric, 0.1);
+        let (thick, thick_builds) = drop_with(Serial::<f32>::new(), &fabric, 2.0);
+        assert!(thin_builds > thick_builds && thick_builds >= 1, "builds: {thin_builds} and {thick_builds}");
+        let apart = |a: &State<f64>, b: &State<f64>| farthest(&a.positions, &b.positions);
+        assert!(thin == thick, "serial f32, skins 0.1 r and 2 r: {} apart", apart(&thin, &thick));
+        let (parallel, _) = drop_with(Rayon::with_threads(2).unwrap(), &fabric, 0.1);
+        assert!(thin == parallel, "serial f32 and rayon, skin 0.1 r: {} apart", apart(&thin, &parallel));
+        let (thin, _) = drop_with(Serial::<f64>::new(), &fabric, 0.1);
+        let (thick, _) = drop_with(Serial::<f64>::new(), &fabric, 2.0);
+        assert!(thin == thick, "serial f64, skins 0.1 r and 2 r: {} apart", apart(&thin, &thick));
+    }
+
     #[test]
     fn calls_before_load_say_so() {
         let mut serial = Serial::<f32>::new();

@@ -191,25 +191,26 @@ impl<T: Real> CpuFabric<T> {
             self.touching.rebuild(&self.model, &self.positions, self.exec);
             self.sleep.set_touching(&self.model, self.touching.segment_pairs());
         }
+        self.touching.refresh_near(&self.model);
         let mut force = std::mem::take(&mut self.touching.force);
         let mut active = std::mem::take(&mut self.touching.active);
         let mut closest = std::mem::take(&mut self.touching.closest);
         let this = &*self;
-        type PairsBlock<'a, T> = (BlockMut<'a, T>, (&'a mut [bool], &'a mut [Closest<T>]));
-        let body = |(block, (mut out, (active, closest))): (usize, PairsBlock<'_, T>)| {
+        type PairsBlock<'a, T> = (&'a mut [touching::Slots<T>], (&'a mut [bool], &'a mut [Closest<T>]));
+        let body = |(block, (out, (active, closest))): (usize, PairsBlock<'_, T>)| {
             this.with_scratch(|scratch| {
-                let pairs = (&mut out, active, closest);
+                let pairs = (out, active, closest);
                 this.touching.forces_block(&this.model, &this.positions, block, pairs, &mut scratch.pairs);
             });
         };
         run_pass!(
             self.exec,
             force
-                .blocks_mut()
+                .chunks_mut(PAIRS_PER_BLOCK)
                 .zip(active.chunks_mut(PAIRS_PER_BLOCK).zip(closest.chunks_mut(PAIRS_PER_BLOCK)))
                 .enumerate(),
             force
-                .par_blocks_mut()
+                .par_chunks_mut(PAIRS_PER_BLOCK)
                 .zip(active.par_chunks_mut(PAIRS_PER_BLOCK).zip(closest.par_chunks_mut(PAIRS_PER_BLOCK)))
                 .enumerate(),
             TASK_PAIRS,
@@ -222,21 +223,25 @@ impl<T: Real> CpuFabric<T> {
     }
 
     /// Each segment's sums of its pushing pairs' forces or, with
-    /// `friction`, of their friction changes (`touching::SegmentSums`).
+    /// `friction`, of their friction changes (`touching::SegmentSums`);
+    /// after the forces, also how many pairs push each node.
     fn segment_sums(&mut self, friction: bool) {
         let mut sums = std::mem::take(&mut self.touching.sums);
+        let mut pushing = std::mem::take(&mut self.touching.pushing);
         let this = &*self;
-        let body = |(block, out): (usize, &mut [touching::SegmentSums<T>])| {
-            this.touching.sums_block(block, friction, out);
+        let body = |(block, (out, pushing)): (usize, (&mut [touching::SegmentSums<T>], &mut [u32]))| {
+            let pushing = (!friction).then_some(pushing);
+            this.touching.sums_block(&this.model, block, friction, (out, pushing));
         };
         run_pass!(
             self.exec,
-            sums.chunks_mut(BLOCK).enumerate(),
-            sums.par_chunks_mut(BLOCK).enumerate(),
+            sums.chunks_mut(BLOCK).zip(pushing.chunks_mut(BLOCK)).enumerate(),
+            sums.par_chunks_mut(BLOCK).zip(pushing.par_chunks_mut(BLOCK)).enumerate(),
             TASK_BLOCKS,
             body
         );
         self.touching.sums = sums;
+        self.touching.pushing = pushing;
     }
 
     /// Gather x_b − x_a of contacts `range` into `scratch.gap`, and, with
@@ -520,15 +525,15 @@ impl<T: Real> CpuFabric<T> {
         if self.model.self_contact() && self.model.coeffs().friction > T::zero() {
             let mut friction = std::mem::take(&mut self.touching.friction);
             let this = &*self;
-            let body = |(block, mut out): (usize, BlockMut<'_, T>)| {
+            let body = |(block, out): (usize, &mut [touching::Slots<T>])| {
                 this.with_scratch(|scratch| {
-                    this.touching.friction_block(&this.model, &this.velocities, block, &mut out, &mut scratch.pairs);
+                    this.touching.friction_block(&this.model, &this.velocities, block, out, &mut scratch.pairs);
                 });
             };
             run_pass!(
                 self.exec,
-                friction.blocks_mut().enumerate(),
-                friction.par_blocks_mut().enumerate(),
+                friction.chunks_mut(PAIRS_PER_BLOCK).enumerate(),
+                friction.par_chunks_mut(PAIRS_PER_BLOCK).enumerate(),
                 TASK_PAIRS,
                 body
             );

@@ -4,10 +4,14 @@
 //!
 //! Self-contact runs as a Verlet list of segment pairs, rebuilt by
 //! [`yarn_model::self_contact::find_pairs`] when some node has moved half
-//! the skin since the last build or the model's revision changed, and as
-//! passes over the pairs: *pair forces* (each pair's force on its four
-//! nodes, into its four slots) and *pair friction* (each pushing pair's
-//! friction change and its nodes' shares, from x and v*). Each pass gathers
+//! the skin since the last build or the model's revision changed. Of its
+//! candidates, the *near list* keeps those that may come within reach
+//! before it is next refreshed, which is far less often than every
+//! substep and far more often than a rebuild
+//! ([`SelfContacts::refresh_near`]). Two passes run over the near pairs:
+//! *pair forces* (each pair's force on its four nodes, into its four
+//! slots) and *pair friction* (each pushing pair's friction change and its
+//! nodes' shares, from x and v*). Each pass gathers
 //! a block's pairs by component into its thread's [`PairScratch`], finds
 //! their closest points or friction impulses in a loop that vectorises
 //! (the operations of `yarn_model::terms` and `step`, in their order), and
@@ -19,7 +23,7 @@
 //! GPU's order, so
 //! `Serial<f32>` and `wgpu` agree bit for bit. No node or segment is
 //! written by two threads, and the sums do not depend on the thread count
-//! or on when the list was built (pairs out of reach add exactly zero).
+//! or on when either list was built (pairs out of reach add exactly zero).
 //! The collider terms are per node and run inside those two passes.
 //!
 //! This module owns the list, its per-segment entries and the per-pair
@@ -32,61 +36,85 @@ use yarn_model::step::{pair_sharing, segment_end};
 use yarn_model::terms::{Closest, closest_gap, push_depth, self_contact_push};
 use yarn_model::{Coefficients, Model, Real, V3};
 
-use super::field::{BLOCK, BlockMut, Field};
+use super::field::{BLOCK, Field};
 
 /// Pairs per block of the per-pair fields: each pair has four slots.
 pub(crate) const PAIRS_PER_BLOCK: usize = BLOCK / 4;
 
-/// The self-contact candidate list of a CPU fabric and its per-pair
-/// buffers.
+/// A pair's values on its four nodes, by slot: a, a's next, b, b's next.
+pub(crate) type Slots<T> = [V3<T>; 4];
+
+/// The near list's margin δ as a fraction of the skin
+/// ([`SelfContacts::refresh_near`]).
+const NEAR_MARGIN: f64 = 0.25;
+
+/// The self-contact candidate list of a CPU fabric, the near list the pair
+/// passes walk, and its per-pair buffers.
 #[derive(Debug, Default)]
 pub(crate) struct SelfContacts<T> {
     /// Per candidate pair: its segments' nodes [a, a's next, b, b's next].
     nodes: Vec<[u32; 4]>,
     /// The positions at the last build.
     anchor: Field<T>,
-    /// Per pair: its closest distance at the last build.
+    /// Per candidate pair: its closest distance at the last build.
     built_gap: Vec<T>,
     /// Per node: how far it has moved since the last build, as of the
     /// last staleness check.
     moved: Vec<T>,
-    /// Per pair: whether it was within reach at the last force pass; the
-    /// others have zero slots, which the friction pass and the gathers
-    /// skip.
-    pub(crate) active: Vec<bool>,
-    /// Per pair: its closest points at the last force pass, which the
-    /// friction pass, at the same positions, reuses (written for pushing
-    /// pairs only).
-    pub(crate) closest: Vec<Closest<T>>,
     /// [`Model::revision`] at the last build (0: never built).
     revision: u64,
     builds: u64,
-    /// Segment s's entries are `entries[start[s]..start[s + 1]]`, in the
-    /// order of its partners: each the slot (4 × pair + k) of the node s
-    /// starts at; the node it ends at has the next slot.
+    /// Segment s's candidate entries are `entries[start[s]..start[s + 1]]`,
+    /// in the order of its partners: each 2 × pair, or 2 × pair + 1 where
+    /// s is the pair's second segment.
     start: Vec<u32>,
     entries: Vec<u32>,
-    /// Per slot: the pair's force on that node, and its friction change
-    /// (written for pushing pairs only).
-    pub(crate) force: Field<T>,
-    pub(crate) friction: Field<T>,
+    /// Per node: how far it may have moved since the last build before the
+    /// near list must be refreshed; empty when it must be.
+    ceiling: Vec<T>,
+    /// The near list ([`Self::refresh_near`]): the candidates that may
+    /// push before its next refresh, in candidate order, by their nodes.
+    /// The per-pair buffers below and the slots are by near pair.
+    near: Vec<[u32; 4]>,
+    /// Segment s's entries of near pairs are
+    /// `near_entries[near_start[s]..near_start[s + 1]]`, in partner
+    /// order: each the slot (4 × near pair + k) of the node s starts at;
+    /// the node it ends at has the next slot.
+    near_start: Vec<u32>,
+    near_entries: Vec<u32>,
+    /// Per near pair: whether it was within reach at the last force pass;
+    /// the friction pass and the sums skip the others.
+    pub(crate) active: Vec<bool>,
+    /// Per near pair: its closest points at the last force pass, which the
+    /// friction pass, at the same positions, reuses (written for pushing
+    /// pairs only).
+    pub(crate) closest: Vec<Closest<T>>,
+    /// Per near pair, by slot k: the pair's force on its node k, and its
+    /// friction change (written for pushing pairs only). A pair's four
+    /// slots lie together, so a segment sum loads one pair's two in one
+    /// cache line.
+    pub(crate) force: Vec<Slots<T>>,
+    pub(crate) friction: Vec<Slots<T>>,
     /// Per segment: its pushing pairs' sums, of the forces or of the
     /// friction changes, whichever pass ran last.
     pub(crate) sums: Vec<SegmentSums<T>>,
+    /// Per node: how many pairs push it, from the segment it starts and
+    /// the one it ends ([`yarn_model::step::pushing_pairs`]), as of the
+    /// last force pass's sums.
+    pub(crate) pushing: Vec<u32>,
 }
 
 /// A segment's sums over its pushing pairs, in partner order, on its first
-/// node and on its last, and how many pairs push it.
+/// node and on its last.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct SegmentSums<T> {
     first: V3<T>,
     last: V3<T>,
-    pushing: u32,
 }
 
 impl<T: Real> Default for SegmentSums<T> {
     fn default() -> Self {
-        Self { first: V3::zeros(), last: V3::zeros(), pushing: 0 }
+        Self { first: V3::zeros(), last: V3::zeros() }
     }
 }
 
@@ -100,8 +128,8 @@ impl<T: Real> SelfContacts<T> {
             return true;
         }
         let half = T::of(0.5 * model.params().self_contact_skin * model.contact_rule().radius());
-        let far = AtomicBool::new(false);
-        let anchor = &self.anchor;
+        let (far, past_ceiling) = (AtomicBool::new(false), AtomicBool::new(false));
+        let (anchor, ceiling) = (&self.anchor, &self.ceiling);
         let mut moved = std::mem::take(&mut self.moved);
         moved.resize(x.len(), T::zero());
         let body = |(block, moved): (usize, &mut [T])| {
@@ -117,10 +145,67 @@ impl<T: Real> SelfContacts<T> {
             if !within {
                 far.store(true, Ordering::Relaxed);
             }
+            let ceiling = ceiling.get(block * BLOCK..block * BLOCK + moved.len()).unwrap_or(&[]);
+            if ceiling.len() != moved.len() || !moved.iter().zip(ceiling).fold(true, |under, (m, c)| under & (m <= c)) {
+                past_ceiling.store(true, Ordering::Relaxed);
+            }
         };
         run_pass!(exec, moved.chunks_mut(BLOCK).enumerate(), moved.par_chunks_mut(BLOCK).enumerate(), 8, body);
         self.moved = moved;
+        if past_ceiling.into_inner() {
+            self.ceiling.clear();
+        }
         far.into_inner()
+    }
+
+    /// Refresh the near list if some node has moved past its ceiling since
+    /// the last refresh, or the list was rebuilt. It keeps the candidates
+    /// whose distance at the build, less how far their nodes have moved
+    /// since, is within reach plus a margin δ ([`NEAR_MARGIN`] of the
+    /// skin), and lets each node move δ/2 further before the next refresh.
+    /// Until then no other candidate can come within reach (its distance
+    /// less its nodes' moves stays at least 2r), so the pair passes
+    /// measure only these, and the sums walk only their entries, in the
+    /// same order: what the passes compute does not change.
+    pub(crate) fn refresh_near(&mut self, model: &Model<T>) {
+        if self.ceiling.len() == self.moved.len() {
+            return;
+        }
+        let skin = model.params().self_contact_skin * model.contact_rule().radius();
+        let margin = T::of(NEAR_MARGIN * skin);
+        // A thousandth of a radius for the rounding of the bound's terms.
+        let clear = T::of(2.0 * model.contact_rule().radius() * 1.0005);
+        let moved = |i: u32| self.moved[i as usize];
+        // Per candidate: its index in the near list, or none.
+        let mut index = vec![u32::MAX; self.nodes.len()];
+        self.near.clear();
+        for ((n, &gap), index) in self.nodes.iter().zip(&self.built_gap).zip(&mut index) {
+            let bound = gap - moved(n[0]).max(moved(n[1])) - moved(n[2]).max(moved(n[3]));
+            // A pair whose bound is not a number (a NaN position) is kept.
+            if bound < clear + margin || !bound.to_f64().is_finite() {
+                *index = self.near.len() as u32;
+                self.near.push(*n);
+            }
+        }
+        self.near_start.clear();
+        self.near_start.push(0);
+        self.near_entries.clear();
+        for s in 0..self.start.len() - 1 {
+            for &entry in &self.entries[self.start[s] as usize..self.start[s + 1] as usize] {
+                let (pair, second) = (entry as usize / 2, entry % 2);
+                if index[pair] != u32::MAX {
+                    self.near_entries.push(4 * index[pair] + 2 * second);
+                }
+            }
+            self.near_start.push(self.near_entries.len() as u32);
+        }
+        let rise = margin * T::of(0.5);
+        self.ceiling = self.moved.iter().map(|&m| m + rise).collect();
+        let pairs = self.near.len();
+        self.active = vec![false; pairs];
+        self.closest = vec![Closest::default(); pairs];
+        self.force = vec![[V3::zeros(); 4]; pairs];
+        self.friction = vec![[V3::zeros(); 4]; pairs];
     }
 
     /// Rebuild the list at `x`, with its incidence and buffers; the search
@@ -146,8 +231,8 @@ impl<T: Real> SelfContacts<T> {
         let mut fill = start.clone();
         self.entries = vec![0; pairs.len() * 2];
         for (pair, &[a, b]) in pairs.iter().enumerate() {
-            for (segment, slot) in [(a, 4 * pair), (b, 4 * pair + 2)] {
-                self.entries[fill[segment as usize] as usize] = slot as u32;
+            for (segment, entry) in [(a, 2 * pair), (b, 2 * pair + 1)] {
+                self.entries[fill[segment as usize] as usize] = entry as u32;
                 fill[segment as usize] += 1;
             }
         }
@@ -161,15 +246,12 @@ impl<T: Real> SelfContacts<T> {
             })
             .collect();
         self.moved = vec![T::zero(); x.len()];
-        self.active = vec![false; self.nodes.len()];
-        self.closest = vec![Closest::default(); self.nodes.len()];
+        self.ceiling.clear();
         self.anchor.clone_from(x);
         self.revision = model.revision();
         self.builds += 1;
-        let slots = self.nodes.len() * 4;
-        self.force = Field::zeros(slots);
-        self.friction = Field::zeros(slots);
         self.sums = vec![SegmentSums::default(); x.len()];
+        self.pushing = vec![0; x.len()];
     }
 
     /// The candidate pairs' segments, [a, b] by their first nodes.
@@ -182,40 +264,52 @@ impl<T: Real> SelfContacts<T> {
         self.builds
     }
 
-    /// Segment `s`'s entries (`None`: no segment), in partner order.
-    fn entries_of(&self, s: Option<u32>) -> &[u32] {
-        let Some(s) = s.map(|s| s as usize) else { return &[] };
-        self.start.get(s + 1).map_or(&[], |&end| &self.entries[self.start[s] as usize..end as usize])
+    /// Segment `s`'s entries of near pairs, in partner order.
+    fn near_entries_of(&self, s: usize) -> &[u32] {
+        self.near_start.get(s + 1).map_or(&[], |&end| &self.near_entries[self.near_start[s] as usize..end as usize])
+    }
+
+    /// Segment `s`'s pushing near entries, in partner order.
+    fn pushing_entries(&self, s: usize) -> impl Iterator<Item = usize> + '_ {
+        self.near_entries_of(s).iter().map(|&slot| slot as usize).filter(|&slot| self.active[slot / 4])
     }
 
     /// Segment `s`'s sums over its pushing pairs, from `values` (the force
     /// or friction slots), on its first node and its last, in partner
-    /// order, and their count: the twin of `segment_pushes` (`touch.wgsl`)
-    /// and of `friction.wgsl`'s shared-out sums.
-    fn segment_sums(&self, s: usize, values: &Field<T>) -> SegmentSums<T> {
+    /// order: the twin of `segment_pushes` (`touch.wgsl`) and of
+    /// `friction.wgsl`'s shared-out sums.
+    fn segment_sums(&self, s: usize, values: &[Slots<T>]) -> SegmentSums<T> {
         let mut sums = SegmentSums::default();
-        for &slot in self.entries_of(Some(s as u32)).iter().filter(|&&slot| self.active[slot as usize / 4]) {
-            sums.first += values.get(slot as usize);
-            sums.last += values.get(slot as usize + 1);
-            sums.pushing += 1;
+        for slot in self.pushing_entries(s) {
+            let (pair, k) = (&values[slot / 4], slot % 4);
+            sums.first += pair[k];
+            sums.last += pair[k + 1];
         }
         sums
     }
 
     /// The segment sums of a block of segments (`out`, from `block`), of
-    /// the forces or, with `friction`, of the friction changes.
-    pub(crate) fn sums_block(&self, block: usize, friction: bool, out: &mut [SegmentSums<T>]) {
+    /// the forces or, with `friction`, of the friction changes. After the
+    /// forces, also how many pairs push each node of the block
+    /// (`pushing`, when given): those of the segment it starts and of the
+    /// one it ends.
+    pub(crate) fn sums_block(
+        &self,
+        model: &Model<T>,
+        block: usize,
+        friction: bool,
+        (out, pushing): (&mut [SegmentSums<T>], Option<&mut [u32]>),
+    ) {
         let values = if friction { &self.friction } else { &self.force };
         for (k, sums) in out.iter_mut().enumerate() {
             *sums = self.segment_sums(block * BLOCK + k, values);
         }
-    }
-
-    /// How many pairs push node `i`: those of the segment it starts and of
-    /// the one it ends (`prev`), as the last segment sums counted them
-    /// ([`yarn_model::step::pushing_pairs`]).
-    fn pushing_at(&self, i: u32, prev: Option<u32>) -> u32 {
-        self.sums[i as usize].pushing + prev.map_or(0, |p| self.sums[p as usize].pushing)
+        let Some(pushing) = pushing else { return };
+        let count = |s: usize| self.pushing_entries(s).count() as u32;
+        let links = &model.links()[block * BLOCK..];
+        for (k, pushing) in pushing.iter_mut().enumerate() {
+            *pushing = count(block * BLOCK + k) + links[k].prev().map_or(0, |p| count(p as usize));
+        }
     }
 
     /// Node `i`'s self-contact force added to `f`: the sum of the segment
@@ -229,53 +323,36 @@ impl<T: Real> SelfContacts<T> {
     /// The force of pairs block `block` on their nodes, into `out`
     /// (slots 4 × pair + k), whether each pushes, into `active`, and the
     /// closest points of those that do, into `closest`:
-    /// [`yarn_model::terms::self_contact_forces`], zero out of reach. A
-    /// pair whose distance at the build, less how far its nodes have moved
-    /// since, is still out of reach cannot touch, and is not measured.
-    /// The bound and the loads of the pairs it keeps run first, in one
-    /// scalar loop, so that their closest points
-    /// ([`PairScratch::closest_points`]) are found in a loop that
-    /// vectorises.
+    /// [`yarn_model::terms::self_contact_forces`], zero out of reach. Only
+    /// the near pairs ([`Self::refresh_near`]) may touch, and only they are
+    /// measured. Their loads run first, in one scalar loop, so that their
+    /// closest points ([`PairScratch::closest_points`]) are found in a loop
+    /// that vectorises.
     pub(crate) fn forces_block(
         &self,
         model: &Model<T>,
         x: &Field<T>,
         block: usize,
-        (out, active, closest): (&mut BlockMut<'_, T>, &mut [bool], &mut [Closest<T>]),
+        (out, active, closest): (&mut [Slots<T>], &mut [bool], &mut [Closest<T>]),
         scratch: &mut PairScratch<T>,
     ) {
         let reach = T::of(2.0 * model.contact_rule().radius());
-        // A thousandth of a radius for the rounding of the bound's terms.
-        let clear = reach * T::of(1.0005);
         let k_sc = model.coeffs().self_contact;
         let first = block * PAIRS_PER_BLOCK;
-        let moved = |i: u32| self.moved[i as usize];
         scratch.measured.clear();
-        for (j, active) in active.iter_mut().enumerate() {
-            let nodes = self.nodes[first + j];
-            let nearest =
-                self.built_gap[first + j] - moved(nodes[0]).max(moved(nodes[1])) - moved(nodes[2]).max(moved(nodes[3]));
-            *active = false;
-            // A NaN bound fails the comparison, so that pair is measured.
-            if nearest >= clear {
-                continue;
-            }
-            let m = scratch.measured.len();
-            for (end, i) in scratch.ends.iter_mut().zip(nodes) {
-                end.set(m, x.get(i as usize));
-            }
-            scratch.measured.push(j);
-        }
+        scratch.measured.extend(0..out.len());
+        scratch.gather_ends(x, &self.near[first..]);
         scratch.closest_points();
         for (m, &j) in scratch.measured.iter().enumerate() {
             let pair = scratch.closest(m);
             // A pair that does not push is never read.
-            if let Some(f) = self_contact_push(&pair, reach, k_sc) {
-                (active[j], closest[j]) = (true, pair);
-                for (k, f) in f.into_iter().enumerate() {
-                    (out.x[4 * j + k], out.y[4 * j + k], out.z[4 * j + k]) = (f.x, f.y, f.z);
+            active[j] = match self_contact_push(&pair, reach, k_sc) {
+                Some(f) => {
+                    (closest[j], out[j]) = (pair, f);
+                    true
                 }
-            }
+                None => false,
+            };
         }
     }
 
@@ -290,29 +367,25 @@ impl<T: Real> SelfContacts<T> {
         model: &Model<T>,
         v: &Field<T>,
         block: usize,
-        out: &mut BlockMut<'_, T>,
+        out: &mut [Slots<T>],
         scratch: &mut PairScratch<T>,
     ) {
         let reach = T::of(2.0 * model.contact_rule().radius());
         let first = block * PAIRS_PER_BLOCK;
-        let links = model.links();
         scratch.measured.clear();
         // A pair that does not push is never read.
-        for j in (0..out.x.len() / 4).filter(|&j| self.active[first + j]) {
-            let m = scratch.measured.len();
-            let nodes = self.nodes[first + j];
-            for (end, i) in scratch.ends.iter_mut().zip(nodes) {
-                end.set(m, v.get(i as usize));
-            }
+        scratch.measured.extend((0..out.len()).filter(|&j| self.active[first + j]));
+        scratch.gather_ends(v, &self.near[first..]);
+        for m in 0..scratch.measured.len() {
+            let j = scratch.measured[m];
             scratch.set_closest(m, &self.closest[first + j]);
-            scratch.sharing[m] = pair_sharing(nodes.map(|i| self.pushing_at(i, links[i as usize].prev())));
-            scratch.measured.push(j);
+            let [a, b, c, d] = self.near[first + j].map(|i| i as usize);
+            let pushing = &self.pushing;
+            scratch.sharing[m] = pair_sharing([pushing[a], pushing[b], pushing[c], pushing[d]]);
         }
         scratch.friction_impulses(reach, model.coeffs());
         for (m, &j) in scratch.measured.iter().enumerate() {
-            for (k, dv) in scratch.friction_change(m).into_iter().enumerate() {
-                (out.x[4 * j + k], out.y[4 * j + k], out.z[4 * j + k]) = (dv.x, dv.y, dv.z);
-            }
+            out[j] = scratch.friction_change(m);
         }
     }
 
@@ -364,6 +437,24 @@ impl<T: Real> PairScratch<T> {
             impulse: field(),
             slip: vec![T::zero(); PAIRS_PER_BLOCK],
             sharing: vec![T::one(); PAIRS_PER_BLOCK],
+        }
+    }
+
+    /// The values of `field` at the four nodes of each measured pair (its
+    /// nodes `nodes[j]`, j its index in the block) into `ends`, by
+    /// component: the scattered loads in one scalar loop, whose stores go
+    /// to slices fetched once.
+    fn gather_ends(&mut self, field: &Field<T>, nodes: &[[u32; 4]]) {
+        let Self { measured, ends: [p0, p1, q0, q1], .. } = self;
+        let from = [&field.x[..], &field.y[..], &field.z[..]];
+        let m = measured.len();
+        let mut to = [p0.prefix_mut(m), p1.prefix_mut(m), q0.prefix_mut(m), q1.prefix_mut(m)];
+        for (m, &j) in measured.iter().enumerate() {
+            for (to, i) in to.iter_mut().zip(nodes[j]) {
+                for (to, from) in to.iter_mut().zip(from) {
+                    to[m] = from[i as usize];
+                }
+            }
         }
     }
 
@@ -460,7 +551,7 @@ impl<T: Real> PairScratch<T> {
 
     /// Measured pair `m`'s friction change on its four nodes, from its
     /// impulse ([`Self::friction_impulses`]): zero where it does not slip.
-    fn friction_change(&self, m: usize) -> [V3<T>; 4] {
+    fn friction_change(&self, m: usize) -> Slots<T> {
         if self.slip[m] <= T::zero() {
             return [V3::zeros(); 4];
         }
