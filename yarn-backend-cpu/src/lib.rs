@@ -368,6 +368,52 @@ mod tests {
         assert!(thin == thick, "serial f64, skins 0.1 r and 2 r: {} apart", apart(&thin, &thick));
     }
 
+    /// Self-contact where the block and move passes take a node's sums on
+    /// their own: a ring's closure (its last segment, from node 11 back to
+    /// node 0) pressed across an open yarn, and sliding along it. The
+    /// forces of `Serial<f64>` are the reference's to rounding and its
+    /// trajectory follows it, and the closure's nodes feel the push.
+    #[test]
+    fn self_contact_reaches_a_rings_closure() {
+        use yarn_topology::{FabricParts, Vec3, YarnSpan};
+        let mut positions: Vec<Vec3> = (0..16).map(|i| Vec3::new(1.2 * i as f64, 0.0, 0.0)).collect();
+        // The ring's closure crosses the yarn 1.6 above it, inside 2r = 1.8.
+        positions.extend((0..12).map(|k| {
+            let angle = -std::f64::consts::FRAC_PI_2 + (k as f64 + 0.5) * std::f64::consts::TAU / 12.0;
+            Vec3::new(8.0, 3.0 * angle.cos(), 4.5 + 3.0 * angle.sin())
+        }));
+        let yarns = vec![YarnSpan { start: 0, end: 16, closed: false }, YarnSpan { start: 16, end: 28, closed: true }];
+        let fabric = Fabric::from_parts(FabricParts { positions, yarns, ..FabricParts::default() }).unwrap();
+        let params = Params { self_contact_stiffness: 800.0, ..Params::default() };
+        let mut sliding = State::<f64>::at_rest(&fabric);
+        for v in &mut sliding.velocities[16..] {
+            *v = V3::new(0.0, 20.0, 0.0);
+        }
+        let (mut fast, mut plain) = (Serial::<f64>::new(), Reference::<f64>::new());
+        for backend in [&mut fast as &mut dyn Backend<Real = f64>, &mut plain] {
+            backend.load(&fabric, &params).unwrap();
+            backend.set_pins(&[]).unwrap();
+            backend.write_state(&sliding).unwrap();
+        }
+        let (f, g) = (fast.forces().unwrap(), plain.forces().unwrap());
+        let scale = g.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        let worst = farthest(&f, &g);
+        assert!(worst < 1e-12 * scale, "forces differ by {worst:e} of {scale}");
+        let mut off = Reference::<f64>::new();
+        off.load(&fabric, &Params { self_contact_stiffness: 0.0, ..params }).unwrap();
+        off.write_state(&sliding).unwrap();
+        let without = off.forces().unwrap();
+        for node in [16, 27] {
+            let push = (g[node] - without[node]).norm();
+            assert!(push > 1.0, "ring node {node} feels {push} of self-contact");
+        }
+        fast.advance(60).unwrap();
+        plain.advance(60).unwrap();
+        let (a, b) = (fast.state().unwrap(), plain.state().unwrap());
+        let worst = farthest(&a.positions, &b.positions);
+        assert!(worst < 1e-9, "trajectories differ by {worst:e}");
+    }
+
     #[test]
     fn calls_before_load_say_so() {
         let mut serial = Serial::<f32>::new();

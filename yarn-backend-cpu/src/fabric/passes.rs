@@ -226,22 +226,23 @@ impl<T: Real> CpuFabric<T> {
     /// `friction`, of their friction changes (`touching::SegmentSums`);
     /// after the forces, also how many pairs push each node.
     fn segment_sums(&mut self, friction: bool) {
-        let mut sums = std::mem::take(&mut self.touching.sums);
+        let mut first = std::mem::take(&mut self.touching.first);
+        let mut last = std::mem::take(&mut self.touching.last);
         let mut pushing = std::mem::take(&mut self.touching.pushing);
         let this = &*self;
-        let body = |(block, (out, pushing)): (usize, (&mut [touching::SegmentSums<T>], &mut [u32]))| {
+        type SumsBlock<'a, T> = ((BlockMut<'a, T>, BlockMut<'a, T>), &'a mut [u32]);
+        let body = |(block, ((mut first, mut last), pushing)): (usize, SumsBlock<'_, T>)| {
             let pushing = (!friction).then_some(pushing);
-            this.touching.sums_block(&this.model, block, friction, (out, pushing));
+            this.touching.sums_block(&this.model, block, friction, (&mut first, &mut last, pushing));
         };
         run_pass!(
             self.exec,
-            sums.chunks_mut(BLOCK).zip(pushing.chunks_mut(BLOCK)).enumerate(),
-            sums.par_chunks_mut(BLOCK).zip(pushing.par_chunks_mut(BLOCK)).enumerate(),
+            first.blocks_mut().zip(last.blocks_mut()).zip(pushing.chunks_mut(BLOCK)).enumerate(),
+            first.par_blocks_mut().zip(last.par_blocks_mut()).zip(pushing.par_chunks_mut(BLOCK)).enumerate(),
             TASK_BLOCKS,
             body
         );
-        self.touching.sums = sums;
-        self.touching.pushing = pushing;
+        (self.touching.first, self.touching.last, self.touching.pushing) = (first, last, pushing);
     }
 
     /// Gather x_b − x_a of contacts `range` into `scratch.gap`, and, with
@@ -341,9 +342,13 @@ impl<T: Real> CpuFabric<T> {
             force.set(i, f);
         }
         if self.model.self_contact() {
-            for (i, link) in self.model.links()[lo..hi].iter().enumerate() {
-                force.set(i, self.touching.force_at(lo + i, link.next().is_some(), link.prev(), force.get(i)));
-            }
+            let len = hi - lo;
+            self.touching.add_sums(
+                &self.model,
+                lo,
+                false,
+                [&mut force.x[..len], &mut force.y[..len], &mut force.z[..len]],
+            );
         }
         let surfaces = self.model.surfaces();
         if !surfaces.is_empty() {
@@ -573,11 +578,7 @@ impl<T: Real> CpuFabric<T> {
                     (v.x[j], v.y[j], v.z[j]) = (v.x[j] + dv.x, v.y[j] + dv.y, v.z[j] + dv.z);
                 }
                 if self_friction {
-                    for j in 0..x.x.len() {
-                        let link = this.model.links()[lo + j];
-                        let dv = this.touching.friction_at(lo + j, link.next().is_some(), link.prev());
-                        (v.x[j], v.y[j], v.z[j]) = (v.x[j] + dv.x, v.y[j] + dv.y, v.z[j] + dv.z);
-                    }
+                    this.touching.add_sums(&this.model, lo, true, v.components());
                 }
                 if with_colliders {
                     for j in 0..x.x.len() {

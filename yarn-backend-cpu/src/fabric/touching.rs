@@ -36,7 +36,7 @@ use yarn_model::step::{pair_sharing, segment_end};
 use yarn_model::terms::{Closest, closest_gap, push_depth, self_contact_push};
 use yarn_model::{Coefficients, Model, Real, V3};
 
-use super::field::{BLOCK, Field};
+use super::field::{BLOCK, BlockMut, Field};
 
 /// Pairs per block of the per-pair fields: each pair has four slots.
 pub(crate) const PAIRS_PER_BLOCK: usize = BLOCK / 4;
@@ -96,26 +96,18 @@ pub(crate) struct SelfContacts<T> {
     pub(crate) force: Vec<Slots<T>>,
     pub(crate) friction: Vec<Slots<T>>,
     /// Per segment: its pushing pairs' sums, of the forces or of the
-    /// friction changes, whichever pass ran last.
-    pub(crate) sums: Vec<SegmentSums<T>>,
+    /// friction changes, whichever pass ran last, on its first node and on
+    /// its last, in partner order.
+    pub(crate) first: Field<T>,
+    pub(crate) last: Field<T>,
+    /// The nodes that do not take the sums of the segment they start and
+    /// of the one before them in the arrays (a yarn's ends, a ring's
+    /// closure), ascending.
+    irregular: Vec<u32>,
     /// Per node: how many pairs push it, from the segment it starts and
     /// the one it ends ([`yarn_model::step::pushing_pairs`]), as of the
     /// last force pass's sums.
     pub(crate) pushing: Vec<u32>,
-}
-
-/// A segment's sums over its pushing pairs, in partner order, on its first
-/// node and on its last.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct SegmentSums<T> {
-    first: V3<T>,
-    last: V3<T>,
-}
-
-impl<T: Real> Default for SegmentSums<T> {
-    fn default() -> Self {
-        Self { first: V3::zeros(), last: V3::zeros() }
-    }
 }
 
 impl<T: Real> SelfContacts<T> {
@@ -250,7 +242,11 @@ impl<T: Real> SelfContacts<T> {
         self.anchor.clone_from(x);
         self.revision = model.revision();
         self.builds += 1;
-        self.sums = vec![SegmentSums::default(); x.len()];
+        self.first = Field::zeros(x.len());
+        self.last = Field::zeros(x.len());
+        let links = model.links();
+        let regular = |i: usize| i > 0 && links[i].next().is_some() && links[i].prev() == Some(i as u32 - 1);
+        self.irregular = (0..x.len()).filter(|&i| !regular(i)).map(|i| i as u32).collect();
         self.pushing = vec![0; x.len()];
     }
 
@@ -276,19 +272,20 @@ impl<T: Real> SelfContacts<T> {
 
     /// Segment `s`'s sums over its pushing pairs, from `values` (the force
     /// or friction slots), on its first node and its last, in partner
-    /// order: the twin of `segment_pushes` (`touch.wgsl`) and of
+    /// order, and their count: the twin of `segment_pushes` (`touch.wgsl`) and of
     /// `friction.wgsl`'s shared-out sums.
-    fn segment_sums(&self, s: usize, values: &[Slots<T>]) -> SegmentSums<T> {
-        let mut sums = SegmentSums::default();
+    fn segment_sums(&self, s: usize, values: &[Slots<T>]) -> ([V3<T>; 2], u32) {
+        let (mut sums, mut count) = ([V3::zeros(); 2], 0);
         for slot in self.pushing_entries(s) {
             let (pair, k) = (&values[slot / 4], slot % 4);
-            sums.first += pair[k];
-            sums.last += pair[k + 1];
+            sums[0] += pair[k];
+            sums[1] += pair[k + 1];
+            count += 1;
         }
-        sums
+        (sums, count)
     }
 
-    /// The segment sums of a block of segments (`out`, from `block`), of
+    /// The segment sums of a block of segments (`first` and `last`, from `block`), of
     /// the forces or, with `friction`, of the friction changes. After the
     /// forces, also how many pairs push each node of the block
     /// (`pushing`, when given): those of the segment it starts and of the
@@ -298,26 +295,70 @@ impl<T: Real> SelfContacts<T> {
         model: &Model<T>,
         block: usize,
         friction: bool,
-        (out, pushing): (&mut [SegmentSums<T>], Option<&mut [u32]>),
+        (first, last, pushing): (&mut BlockMut<'_, T>, &mut BlockMut<'_, T>, Option<&mut [u32]>),
     ) {
         let values = if friction { &self.friction } else { &self.force };
-        for (k, sums) in out.iter_mut().enumerate() {
-            *sums = self.segment_sums(block * BLOCK + k, values);
+        let (lo, len) = (block * BLOCK, first.x.len());
+        let mut counts = [0u32; BLOCK];
+        let (fx, fy, fz) = (&mut first.x[..len], &mut first.y[..len], &mut first.z[..len]);
+        let (lx, ly, lz) = (&mut last.x[..len], &mut last.y[..len], &mut last.z[..len]);
+        for (k, count) in counts[..len].iter_mut().enumerate() {
+            let sums;
+            (sums, *count) = self.segment_sums(lo + k, values);
+            (fx[k], fy[k], fz[k]) = (sums[0].x, sums[0].y, sums[0].z);
+            (lx[k], ly[k], lz[k]) = (sums[1].x, sums[1].y, sums[1].z);
         }
         let Some(pushing) = pushing else { return };
-        let count = |s: usize| self.pushing_entries(s).count() as u32;
-        let links = &model.links()[block * BLOCK..];
+        // A segment of another block (a node's previous, across the
+        // block's start or a ring's closure) is counted again.
+        let count = |s: usize| match s.checked_sub(lo) {
+            Some(k) if k < len => counts[k],
+            _ => self.pushing_entries(s).count() as u32,
+        };
+        let links = &model.links()[lo..];
         for (k, pushing) in pushing.iter_mut().enumerate() {
-            *pushing = count(block * BLOCK + k) + links[k].prev().map_or(0, |p| count(p as usize));
+            *pushing = counts[k] + links[k].prev().map_or(0, |p| count(p as usize));
         }
     }
 
-    /// Node `i`'s self-contact force added to `f`: the sum of the segment
-    /// it starts (`own`: whether it starts one), then that of the one it
-    /// ends (`prev`).
-    pub(crate) fn force_at(&self, i: usize, own: bool, prev: Option<u32>, f: V3<T>) -> V3<T> {
-        let f = if own { f + self.sums[i].first } else { f };
-        prev.map_or(f, |p| f + self.sums[p as usize].last)
+    /// Add to `out` (nodes lo.., by component) each node's self-contact
+    /// sums: `x + first + last` with the sum on it of the segment it starts
+    /// and of the one it ends, in that order, where it starts one and ends
+    /// one; `(x + first) + last` for the forces or, with `friction`, `x +
+    /// (first + last)`. Most nodes start segment i and end segment i − 1,
+    /// and their runs are added in loops that vectorise; the irregular
+    /// ones each on their own.
+    pub(crate) fn add_sums(&self, model: &Model<T>, lo: usize, friction: bool, mut out: [&mut [T]; 3]) {
+        let hi = lo + out[0].len();
+        let from = self.irregular.partition_point(|&i| (i as usize) < lo);
+        let irregular = self.irregular[from..].iter().map(|&i| i as usize).take_while(|&i| i < hi);
+        let (first, last) = ([&self.first.x, &self.first.y, &self.first.z], [&self.last.x, &self.last.y, &self.last.z]);
+        let mut start = lo;
+        for end in irregular.chain([hi]) {
+            if start < end {
+                for ((out, first), last) in out.iter_mut().zip(first).zip(last) {
+                    let (out, first, last) =
+                        (&mut out[start - lo..end - lo], &first[start..end], &last[start - 1..end - 1]);
+                    for k in 0..out.len() {
+                        out[k] = if friction { out[k] + (first[k] + last[k]) } else { out[k] + first[k] + last[k] };
+                    }
+                }
+            }
+            if end < hi {
+                let link = model.links()[end];
+                let own = link.next().map(|_| self.first.get(end));
+                let before = link.prev().map(|p| self.last.get(p as usize));
+                let x = V3::new(out[0][end - lo], out[1][end - lo], out[2][end - lo]);
+                let x = if friction {
+                    x + (own.unwrap_or_else(V3::zeros) + before.unwrap_or_else(V3::zeros))
+                } else {
+                    let x = own.map_or(x, |own| x + own);
+                    before.map_or(x, |before| x + before)
+                };
+                (out[0][end - lo], out[1][end - lo], out[2][end - lo]) = (x.x, x.y, x.z);
+            }
+            start = end + 1;
+        }
     }
 
     /// The force of pairs block `block` on their nodes, into `out`
@@ -387,15 +428,6 @@ impl<T: Real> SelfContacts<T> {
         for (m, &j) in scratch.measured.iter().enumerate() {
             out[j] = scratch.friction_change(m);
         }
-    }
-
-    /// The friction change at node `i`: the segment sums of the one it
-    /// starts (`own`: whether it starts one) and the one it ends (`prev`),
-    /// added.
-    pub(crate) fn friction_at(&self, i: usize, own: bool, prev: Option<u32>) -> V3<T> {
-        let none = SegmentSums::default();
-        let (own, before) = (if own { &self.sums[i] } else { &none }, prev.map_or(&none, |p| &self.sums[p as usize]));
-        own.first + before.last
     }
 }
 
