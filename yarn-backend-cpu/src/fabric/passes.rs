@@ -189,7 +189,11 @@ impl<T: Real> CpuFabric<T> {
         }
         if self.touching.stale(&self.model, &self.positions, self.exec) {
             self.touching.rebuild(&self.model, &self.positions, self.exec);
-            self.sleep.set_touching(&self.model, self.touching.segment_pairs());
+            // Only sleeping reads which blocks the pairs join; setting
+            // `sleep_speed` is a new revision, which rebuilds.
+            if self.model.params().sleep_speed > 0.0 {
+                self.sleep.set_touching(&self.model, self.touching.segment_pairs());
+            }
         }
         self.touching.refresh_near(&self.model);
         let mut force = std::mem::take(&mut self.touching.force);

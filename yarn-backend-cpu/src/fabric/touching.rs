@@ -192,12 +192,16 @@ impl<T: Real> SelfContacts<T> {
             self.near_start.push(self.near_entries.len() as u32);
         }
         let rise = margin * T::of(0.5);
-        self.ceiling = self.moved.iter().map(|&m| m + rise).collect();
+        self.ceiling.clear();
+        self.ceiling.extend(self.moved.iter().map(|&m| m + rise));
+        // Every pass writes what it reads for the pairs it reads (`active`
+        // for all, the rest for those that push), so the buffers keep what
+        // they held.
         let pairs = self.near.len();
-        self.active = vec![false; pairs];
-        self.closest = vec![Closest::default(); pairs];
-        self.force = vec![[V3::zeros(); 4]; pairs];
-        self.friction = vec![[V3::zeros(); 4]; pairs];
+        self.active.resize(pairs, false);
+        self.closest.resize(pairs, Closest::default());
+        self.force.resize(pairs, [V3::zeros(); 4]);
+        self.friction.resize(pairs, [V3::zeros(); 4]);
     }
 
     /// Rebuild the list at `x`, with its incidence and buffers; the search
