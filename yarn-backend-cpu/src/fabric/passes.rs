@@ -227,8 +227,8 @@ impl<T: Real> CpuFabric<T> {
     }
 
     /// Each segment's sums of its pushing pairs' forces or, with
-    /// `friction`, of their friction changes (`touching::SegmentSums`);
-    /// after the forces, also how many pairs push each node.
+    /// `friction`, of their friction changes, on its first node and its
+    /// last; after the forces, also how many pairs push each node.
     fn segment_sums(&mut self, friction: bool) {
         let mut first = std::mem::take(&mut self.touching.first);
         let mut last = std::mem::take(&mut self.touching.last);
@@ -346,13 +346,7 @@ impl<T: Real> CpuFabric<T> {
             force.set(i, f);
         }
         if self.model.self_contact() {
-            let len = hi - lo;
-            self.touching.add_sums(
-                &self.model,
-                lo,
-                false,
-                [&mut force.x[..len], &mut force.y[..len], &mut force.z[..len]],
-            );
+            self.touching.add_sums(&self.model, lo, false, force.prefix_mut(hi - lo));
         }
         let surfaces = self.model.surfaces();
         if !surfaces.is_empty() {

@@ -276,8 +276,8 @@ impl<T: Real> SelfContacts<T> {
 
     /// Segment `s`'s sums over its pushing pairs, from `values` (the force
     /// or friction slots), on its first node and its last, in partner
-    /// order, and their count: the twin of `segment_pushes` (`touch.wgsl`) and of
-    /// `friction.wgsl`'s shared-out sums.
+    /// order, and their count: the twin of `segment_pushes` (`touch.wgsl`)
+    /// and of `friction.wgsl`'s shared-out sums.
     fn segment_sums(&self, s: usize, values: &[Slots<T>]) -> ([V3<T>; 2], u32) {
         let (mut sums, mut count) = ([V3::zeros(); 2], 0);
         for slot in self.pushing_entries(s) {
@@ -289,9 +289,9 @@ impl<T: Real> SelfContacts<T> {
         (sums, count)
     }
 
-    /// The segment sums of a block of segments (`first` and `last`, from `block`), of
-    /// the forces or, with `friction`, of the friction changes. After the
-    /// forces, also how many pairs push each node of the block
+    /// The segment sums of block `block` of segments, into `first` and
+    /// `last`, of the forces or, with `friction`, of the friction changes.
+    /// After the forces, also how many pairs push each node of the block
     /// (`pushing`, when given): those of the segment it starts and of the
     /// one it ends.
     pub(crate) fn sums_block(
@@ -326,12 +326,12 @@ impl<T: Real> SelfContacts<T> {
     }
 
     /// Add to `out` (nodes lo.., by component) each node's self-contact
-    /// sums: `x + first + last` with the sum on it of the segment it starts
-    /// and of the one it ends, in that order, where it starts one and ends
-    /// one; `(x + first) + last` for the forces or, with `friction`, `x +
-    /// (first + last)`. Most nodes start segment i and end segment i − 1,
-    /// and their runs are added in loops that vectorise; the irregular
-    /// ones each on their own.
+    /// sums: `first`, that of the segment it starts, where it starts one,
+    /// and `last`, that of the one it ends, where it ends one, in the GPU's
+    /// order: `(x + first) + last` for the forces or, with `friction`,
+    /// `x + (first + last)`. Most nodes start segment i and end segment
+    /// i − 1, and runs of them are added in loops that vectorise; the
+    /// irregular ones one at a time.
     pub(crate) fn add_sums(&self, model: &Model<T>, lo: usize, friction: bool, mut out: [&mut [T]; 3]) {
         let hi = lo + out[0].len();
         let from = self.irregular.partition_point(|&i| (i as usize) < lo);
@@ -365,8 +365,8 @@ impl<T: Real> SelfContacts<T> {
         }
     }
 
-    /// The force of pairs block `block` on their nodes, into `out`
-    /// (slots 4 × pair + k), whether each pushes, into `active`, and the
+    /// The force of near pairs block `block` on their nodes, into `out`
+    /// (slot k: on node k), whether each pushes, into `active`, and the
     /// closest points of those that do, into `closest`:
     /// [`yarn_model::terms::self_contact_forces`], zero out of reach. Only
     /// the near pairs ([`Self::refresh_near`]) may touch, and only they are
@@ -401,7 +401,7 @@ impl<T: Real> SelfContacts<T> {
         }
     }
 
-    /// The friction change of pairs block `block` from x (the force
+    /// The friction change of near pairs block `block` from x (the force
     /// pass's closest points) and `v` (v*), into `out`:
     /// [`yarn_model::step::self_contact_friction`], zero where it returns
     /// `None`. The pushing pairs' velocities and closest points are
@@ -421,11 +421,11 @@ impl<T: Real> SelfContacts<T> {
         // A pair that does not push is never read.
         scratch.measured.extend((0..out.len()).filter(|&j| self.active[first + j]));
         scratch.gather_ends(v, &self.near[first..]);
+        let pushing = &self.pushing;
         for m in 0..scratch.measured.len() {
             let j = scratch.measured[m];
             scratch.set_closest(m, &self.closest[first + j]);
             let [a, b, c, d] = self.near[first + j].map(|i| i as usize);
-            let pushing = &self.pushing;
             scratch.sharing[m] = pair_sharing([pushing[a], pushing[b], pushing[c], pushing[d]]);
         }
         scratch.friction_impulses(reach, model.coeffs());
@@ -483,8 +483,8 @@ impl<T: Real> PairScratch<T> {
     fn gather_ends(&mut self, field: &Field<T>, nodes: &[[u32; 4]]) {
         let Self { measured, ends: [p0, p1, q0, q1], .. } = self;
         let from = [&field.x[..], &field.y[..], &field.z[..]];
-        let m = measured.len();
-        let mut to = [p0.prefix_mut(m), p1.prefix_mut(m), q0.prefix_mut(m), q1.prefix_mut(m)];
+        let count = measured.len();
+        let mut to = [p0.prefix_mut(count), p1.prefix_mut(count), q0.prefix_mut(count), q1.prefix_mut(count)];
         for (m, &j) in measured.iter().enumerate() {
             for (to, i) in to.iter_mut().zip(nodes[j]) {
                 for (to, from) in to.iter_mut().zip(from) {
