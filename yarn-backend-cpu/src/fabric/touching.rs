@@ -113,7 +113,8 @@ pub(crate) struct SelfContacts<T> {
 impl<T: Real> SelfContacts<T> {
     /// Whether the list may miss a pair within 2r at `x`: some node has
     /// moved half the skin since the last build, or the model changed.
-    /// Records how far each node has moved, for the force pass's bound.
+    /// Records how far each node has moved, for the near list's bound, and
+    /// marks the near list for a refresh once a node passes its ceiling.
     /// Blocks are checked as `exec` runs them.
     pub(crate) fn stale(&mut self, model: &Model<T>, x: &Field<T>, exec: super::Exec) -> bool {
         if self.revision != model.revision() || self.anchor.len() != x.len() {
