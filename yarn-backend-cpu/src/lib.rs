@@ -645,6 +645,66 @@ mod tests {
         check::<Rayon>((Rayon::with_threads(2).unwrap(), Rayon::sleeping_blocks));
     }
 
+    /// A sleeping block wakes when a block it touches only through
+    /// self-contact moves fast. The kicked straight yarn of the test above
+    /// (two blocks here) has a second yarn, a third block, lying beside its
+    /// second block 2.0 apart: within reach plus the skin (1.8 + 0.45), so
+    /// they make candidate pairs, but out of reach, so nothing pushes and
+    /// the second yarn stays at rest. It starts 4 units past the second
+    /// block's first node, out of the skin of the segment that joins the
+    /// first two blocks (which would make it touch the first). It shares
+    /// no segment and no contact with the first yarn, so only the pairs
+    /// can wake it: it falls asleep while the kick runs along the first
+    /// block, and wakes at the look where the second block first moves
+    /// faster than twice the sleep speed, not before and not after.
+    #[test]
+    fn a_sleeping_block_wakes_when_a_block_it_touches_moves_fast() {
+        use yarn_topology::{FabricParts, Vec3, YarnSpan};
+        fn check<B: Backend>((mut backend, sleeping): Sleeper<B>) {
+            let sleep_speed = 0.01;
+            let kicked = (0..1024u32).map(|i| Vec3::new(0.5 * f64::from(i), 0.0, 0.0));
+            let beside = (0..512u32).map(|i| Vec3::new(260.0 + 0.5 * f64::from(i), 2.0, 0.0));
+            let yarns = vec![YarnSpan::open(0..1024), YarnSpan::open(1024..1536)];
+            let fabric = Fabric::from_parts(FabricParts {
+                positions: kicked.chain(beside).collect(),
+                yarns,
+                ..Default::default()
+            })
+            .unwrap();
+            let params = Params { sleep_speed, damping: 0.0, self_contact_stiffness: 1600.0, ..Params::default() };
+            backend.load(&fabric, &params).unwrap();
+            let name = backend.name();
+            let mut state = backend.state().unwrap();
+            for v in &mut state.velocities[..10] {
+                v.x = B::Real::of(1.0);
+            }
+            backend.write_state(&state).unwrap();
+            let mut substeps = u64::from(yarn_model::SLEEP_AFTER);
+            backend.advance(substeps).unwrap();
+            assert_eq!(sleeping(&backend), 1, "{name}: only the yarn beside should sleep");
+            assert!(backend.state().unwrap().velocities[1024..].iter().all(|v| *v == V3::zeros()), "{name}: it moved");
+            let touched = |state: &State<B::Real>| {
+                state.velocities[512..1024].iter().map(|v| v.norm_squared().to_f64()).fold(0.0, f64::max)
+            };
+            let wake2 = 4.0 * sleep_speed * sleep_speed;
+            loop {
+                let before = touched(&backend.state().unwrap());
+                backend.advance(10).unwrap();
+                substeps += 10;
+                let after = touched(&backend.state().unwrap());
+                if sleeping(&backend) == 0 {
+                    assert!(before <= wake2 && after > wake2, "{name}: woke at touched speed² {after}, limit {wake2}");
+                    break;
+                }
+                assert!(after <= wake2, "{name}: touched speed² {after} past {wake2}, the yarn beside still asleep");
+                assert!(substeps < 4000, "{name}: the kick never reached the touched block");
+            }
+        }
+        check::<Serial<f32>>((Serial::new(), Serial::sleeping_blocks));
+        check::<Serial<f64>>((Serial::new(), Serial::sleeping_blocks));
+        check::<Rayon>((Rayon::with_threads(2).unwrap(), Rayon::sleeping_blocks));
+    }
+
     /// A block that is slow but speeding up is not settling, so it does not
     /// sleep: the straight yarn falls from rest under gravity, undamped, at
     /// g t, which stays under the sleep speed for 600 substeps (0.4 of it)
