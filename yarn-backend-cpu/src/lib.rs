@@ -594,6 +594,52 @@ mod tests {
         check::<Rayon>((Rayon::with_threads(2).unwrap(), Rayon::sleeping_blocks));
     }
 
+    /// Kick the start of `fabric` (its first 10 nodes at 1 along x) on
+    /// `backend`, undamped at sleep speed 0.01 (and `self_contact_stiffness`),
+    /// and check that after [`yarn_model::SLEEP_AFTER`] substeps exactly one
+    /// block sleeps, nodes 1,024 on, and that it wakes at the look where
+    /// nodes 512..1,024 first move faster than twice the sleep speed, not
+    /// before and not after, by substep 4,000.
+    fn wakes_when_the_middle_moves_fast<B: Backend>(
+        (mut backend, sleeping): Sleeper<B>,
+        fabric: &Fabric,
+        self_contact_stiffness: f64,
+    ) {
+        let sleep_speed = 0.01;
+        let params = Params { sleep_speed, damping: 0.0, self_contact_stiffness, ..Params::default() };
+        backend.load(fabric, &params).unwrap();
+        let name = backend.name();
+        let mut state = backend.state().unwrap();
+        for v in &mut state.velocities[..10] {
+            v.x = B::Real::of(1.0);
+        }
+        backend.write_state(&state).unwrap();
+        let mut substeps = u64::from(yarn_model::SLEEP_AFTER);
+        backend.advance(substeps).unwrap();
+        let state = backend.state().unwrap();
+        assert_eq!(sleeping(&backend), 1, "{name}: only the last block should sleep");
+        assert!(state.velocities[1024..].iter().all(|v| *v == V3::zeros()), "{name}: the last block is awake");
+        // The fastest speed squared in the middle block, as the sleep look
+        // computes it.
+        let middle = |state: &State<B::Real>| {
+            state.velocities[512..1024].iter().map(|v| v.norm_squared().to_f64()).fold(0.0, f64::max)
+        };
+        let wake2 = 4.0 * sleep_speed * sleep_speed;
+        loop {
+            let before = middle(&backend.state().unwrap());
+            backend.advance(10).unwrap();
+            substeps += 10;
+            let after = middle(&backend.state().unwrap());
+            if sleeping(&backend) == 0 {
+                assert!(before <= wake2 && after > wake2, "{name}: woke at middle speed² {after}, limit {wake2}");
+                eprintln!("{name}: the last block woke at substep {substeps} (middle speed² {after} > {wake2})");
+                return;
+            }
+            assert!(after <= wake2, "{name}: middle speed² {after} past {wake2}, the last block still asleep");
+            assert!(substeps < 4000, "{name}: the kick never reached the middle block");
+        }
+    }
+
     /// A sleeping block wakes when a neighbour moves at more than twice
     /// the sleep speed, with no call to the backend. A kick at the start of
     /// an undamped straight yarn keeps the first block fast, which holds
@@ -605,44 +651,10 @@ mod tests {
     /// the test gives the kick until substep 4,000.
     #[test]
     fn a_sleeping_block_wakes_when_its_neighbour_moves_fast() {
-        fn check<B: Backend>((mut backend, sleeping): Sleeper<B>) {
-            let sleep_speed = 0.01;
-            let fabric = straight_yarn(Vec::new());
-            backend.load(&fabric, &Params { sleep_speed, damping: 0.0, ..Params::default() }).unwrap();
-            let name = backend.name();
-            let mut state = backend.state().unwrap();
-            for v in &mut state.velocities[..10] {
-                v.x = B::Real::of(1.0);
-            }
-            backend.write_state(&state).unwrap();
-            let mut substeps = u64::from(yarn_model::SLEEP_AFTER);
-            backend.advance(substeps).unwrap();
-            let state = backend.state().unwrap();
-            assert_eq!(sleeping(&backend), 1, "{name}: only the far block should sleep");
-            assert!(state.velocities[1024..].iter().all(|v| *v == V3::zeros()), "{name}: the far block is awake");
-            // The fastest speed squared in the middle block, as the sleep
-            // look computes it.
-            let middle = |state: &State<B::Real>| {
-                state.velocities[512..1024].iter().map(|v| v.norm_squared().to_f64()).fold(0.0, f64::max)
-            };
-            let wake2 = 4.0 * sleep_speed * sleep_speed;
-            loop {
-                let before = middle(&backend.state().unwrap());
-                backend.advance(10).unwrap();
-                substeps += 10;
-                let after = middle(&backend.state().unwrap());
-                if sleeping(&backend) == 0 {
-                    assert!(before <= wake2 && after > wake2, "{name}: woke at middle speed² {after}, limit {wake2}");
-                    eprintln!("{name}: the far block woke at substep {substeps} (middle speed² {after} > {wake2})");
-                    break;
-                }
-                assert!(after <= wake2, "{name}: middle speed² {after} past {wake2}, the far block still asleep");
-                assert!(substeps < 4000, "{name}: the kick never reached the middle block");
-            }
-        }
-        check::<Serial<f32>>((Serial::new(), Serial::sleeping_blocks));
-        check::<Serial<f64>>((Serial::new(), Serial::sleeping_blocks));
-        check::<Rayon>((Rayon::with_threads(2).unwrap(), Rayon::sleeping_blocks));
+        let fabric = straight_yarn(Vec::new());
+        wakes_when_the_middle_moves_fast((Serial::<f32>::new(), Serial::sleeping_blocks), &fabric, 0.0);
+        wakes_when_the_middle_moves_fast((Serial::<f64>::new(), Serial::sleeping_blocks), &fabric, 0.0);
+        wakes_when_the_middle_moves_fast((Rayon::with_threads(2).unwrap(), Rayon::sleeping_blocks), &fabric, 0.0);
     }
 
     /// A sleeping block wakes when a block it touches only through
@@ -660,49 +672,15 @@ mod tests {
     #[test]
     fn a_sleeping_block_wakes_when_a_block_it_touches_moves_fast() {
         use yarn_topology::{FabricParts, Vec3, YarnSpan};
-        fn check<B: Backend>((mut backend, sleeping): Sleeper<B>) {
-            let sleep_speed = 0.01;
-            let kicked = (0..1024u32).map(|i| Vec3::new(0.5 * f64::from(i), 0.0, 0.0));
-            let beside = (0..512u32).map(|i| Vec3::new(260.0 + 0.5 * f64::from(i), 2.0, 0.0));
-            let yarns = vec![YarnSpan::open(0..1024), YarnSpan::open(1024..1536)];
-            let fabric = Fabric::from_parts(FabricParts {
-                positions: kicked.chain(beside).collect(),
-                yarns,
-                ..Default::default()
-            })
-            .unwrap();
-            let params = Params { sleep_speed, damping: 0.0, self_contact_stiffness: 1600.0, ..Params::default() };
-            backend.load(&fabric, &params).unwrap();
-            let name = backend.name();
-            let mut state = backend.state().unwrap();
-            for v in &mut state.velocities[..10] {
-                v.x = B::Real::of(1.0);
-            }
-            backend.write_state(&state).unwrap();
-            let mut substeps = u64::from(yarn_model::SLEEP_AFTER);
-            backend.advance(substeps).unwrap();
-            assert_eq!(sleeping(&backend), 1, "{name}: only the yarn beside should sleep");
-            assert!(backend.state().unwrap().velocities[1024..].iter().all(|v| *v == V3::zeros()), "{name}: it moved");
-            let touched = |state: &State<B::Real>| {
-                state.velocities[512..1024].iter().map(|v| v.norm_squared().to_f64()).fold(0.0, f64::max)
-            };
-            let wake2 = 4.0 * sleep_speed * sleep_speed;
-            loop {
-                let before = touched(&backend.state().unwrap());
-                backend.advance(10).unwrap();
-                substeps += 10;
-                let after = touched(&backend.state().unwrap());
-                if sleeping(&backend) == 0 {
-                    assert!(before <= wake2 && after > wake2, "{name}: woke at touched speed² {after}, limit {wake2}");
-                    break;
-                }
-                assert!(after <= wake2, "{name}: touched speed² {after} past {wake2}, the yarn beside still asleep");
-                assert!(substeps < 4000, "{name}: the kick never reached the touched block");
-            }
-        }
-        check::<Serial<f32>>((Serial::new(), Serial::sleeping_blocks));
-        check::<Serial<f64>>((Serial::new(), Serial::sleeping_blocks));
-        check::<Rayon>((Rayon::with_threads(2).unwrap(), Rayon::sleeping_blocks));
+        let kicked = (0..1024u32).map(|i| Vec3::new(0.5 * f64::from(i), 0.0, 0.0));
+        let beside = (0..512u32).map(|i| Vec3::new(260.0 + 0.5 * f64::from(i), 2.0, 0.0));
+        let yarns = vec![YarnSpan::open(0..1024), YarnSpan::open(1024..1536)];
+        let fabric =
+            Fabric::from_parts(FabricParts { positions: kicked.chain(beside).collect(), yarns, ..Default::default() })
+                .unwrap();
+        wakes_when_the_middle_moves_fast((Serial::<f32>::new(), Serial::sleeping_blocks), &fabric, 1600.0);
+        wakes_when_the_middle_moves_fast((Serial::<f64>::new(), Serial::sleeping_blocks), &fabric, 1600.0);
+        wakes_when_the_middle_moves_fast((Rayon::with_threads(2).unwrap(), Rayon::sleeping_blocks), &fabric, 1600.0);
     }
 
     /// A block that is slow but speeding up is not settling, so it does not
