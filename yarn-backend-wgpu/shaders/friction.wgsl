@@ -4,8 +4,9 @@
 // its colliders' (from v*), and moves. It writes the other pair of state
 // buffers, since its neighbours still read this one.
 //
-// With self-contact and friction, the self-contacts' changes are summed
-// here, segment by segment, and a node adds the sum of the segment it
+// With self-contact and friction (entry point `main_touching`, which the
+// backend chooses then, so that `main` compiles none of it), the
+// self-contacts' changes are summed here, segment by segment, and a node adds the sum of the segment it
 // starts and then of the one it ends, taken from the thread before it as
 // in `gather.wgsl` (a workgroup covers WORKGROUP − 1 nodes). CPU twin: the
 // friction pass and segment sums of yarn-backend-cpu's `fabric/touching.rs`.
@@ -115,13 +116,9 @@ fn segment_friction(s: u32, end: u32) -> Sums {
 // without self-contact or friction).
 var<private> self_contact_change: vec3<f32>;
 
-// The node this thread takes, NONE for none; with self-contact and
-// friction, its self-contacts' changes are summed first, shared out
-// (above).
-fn node_of(group: vec3<u32>, local: vec3<u32>, groups: vec3<u32>) -> u32 {
-    if (p.flags & SELF_CONTACT) == 0u || p.friction <= 0.0 {
-        return thread_index(group, local, groups);
-    }
+// With self-contact: the node this thread takes, NONE for none, once the
+// workgroup has summed its segments' friction changes, shared out (above).
+fn touching_node_of(group: vec3<u32>, local: vec3<u32>, groups: vec3<u32>) -> u32 {
     let t = local.x;
     // For the first thread of all, NONE (the wrap of 0 − 1).
     let first_segment = (group.y * groups.x + group.x) * (WORKGROUP - 1u) - 1u;
@@ -185,10 +182,8 @@ fn node_of(group: vec3<u32>, local: vec3<u32>, groups: vec3<u32>) -> u32 {
     return s;
 }
 
-@compute @workgroup_size(WORKGROUP)
-fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
-        @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = node_of(group, local, groups);
+// Node i's friction and move.
+fn friction_at(i: u32) {
     if i >= p.nodes {
         return;
     }
@@ -201,4 +196,16 @@ fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     v_next[i] = vec4<f32>(velocity, 0.0);
     x_next[i] = vec4<f32>(at, 0.0);
     watch_move(i, at, velocity);
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn main(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
+        @builtin(num_workgroups) groups: vec3<u32>) {
+    friction_at(thread_index(group, local, groups));
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn main_touching(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
+                 @builtin(num_workgroups) groups: vec3<u32>) {
+    friction_at(touching_node_of(group, local, groups));
 }

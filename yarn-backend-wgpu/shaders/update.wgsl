@@ -1,17 +1,15 @@
 // The node update both accumulation modes share (SPEC §4 steps 1–2): the
 // damped velocity v* in place and, without friction, the move into `out`
-// (entry point `step`); or the force alone into `out` (entry point
-// `forces`, for `Backend::compute_forces`). Each mode's file supplies
-// `node_of` (the node a thread takes, NONE for none; the gather's computes
-// each node's self-contact pushes with it), `total_force(i)`,
-// `watch_speed(i, velocity)` and `watch_move` (`touch.wgsl`'s, or nothing),
-// and the bindings `p`, `x`, `v` and `out`; the colliders' push comes
-// last, as on the CPU.
+// (`step_at`, entry point `step`); or the force alone into `out`
+// (`forces_at`, entry point `forces`, for `Backend::compute_forces`). Each
+// mode's file supplies `node_of` (the node a thread takes, NONE for none),
+// `total_force(i)`, `watch_speed(i, velocity)` and `watch_move`
+// (`touch.wgsl`'s, or nothing), and the bindings `p`, `x`, `v` and `out`;
+// the colliders' push comes last, as on the CPU. A mode may add entry
+// points of its own around `step_at` and `forces_at` (the gather's with
+// self-contact).
 
-@compute @workgroup_size(WORKGROUP)
-fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
-        @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = node_of(group, local, groups);
+fn step_at(i: u32) {
     if i >= p.nodes {
         return;
     }
@@ -25,12 +23,21 @@ fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) l
     }
 }
 
-@compute @workgroup_size(WORKGROUP)
-fn forces(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
-          @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = node_of(group, local, groups);
+fn forces_at(i: u32) {
     if i >= p.nodes {
         return;
     }
     out[i] = vec4<f32>(with_colliders(total_force(i), x[i].xyz), 0.0);
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn step(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
+        @builtin(num_workgroups) groups: vec3<u32>) {
+    step_at(node_of(group, local, groups));
+}
+
+@compute @workgroup_size(WORKGROUP)
+fn forces(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>,
+          @builtin(num_workgroups) groups: vec3<u32>) {
+    forces_at(node_of(group, local, groups));
 }

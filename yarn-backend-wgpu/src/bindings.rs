@@ -234,7 +234,8 @@ impl Groups {
     pub(crate) fn new(gpu: &Gpu, mode: Mode, buffers: &Buffers) -> Self {
         let pipelines = &gpu.pipelines;
         let (x, v) = (&buffers.x, &buffers.v);
-        let forces = forces_kernel(mode, pipelines, buffers);
+        // The layout and bindings, which the entry points share.
+        let forces = forces_kernel(mode, false, pipelines, buffers);
         let forces_pass = |label, at: Parity, out: &wgpu::Buffer| {
             let mut bound = vec![&buffers.params, &x[at.x], &v[at.v], out];
             bound.extend(forces.bindings.iter().flatten());
@@ -322,17 +323,27 @@ pub(crate) struct ForcesKernel<'a> {
     pub(crate) step_name: &'static str,
 }
 
-/// The forces pass of `mode`.
-pub(crate) fn forces_kernel<'a>(mode: Mode, pipelines: &'a Pipelines, buffers: &'a Buffers) -> ForcesKernel<'a> {
+/// The forces pass of `mode`, for a model with self-contact where
+/// `self_contact` (gather's entry points that sum the pushes; fixed point
+/// runs none).
+pub(crate) fn forces_kernel<'a>(
+    mode: Mode,
+    self_contact: bool,
+    pipelines: &'a Pipelines,
+    buffers: &'a Buffers,
+) -> ForcesKernel<'a> {
     match mode {
-        Mode::Gather => ForcesKernel {
-            layout: &pipelines.gather.layout,
-            bindings: [Some(&buffers.chain), Some(&buffers.start), Some(&buffers.incident), Some(&buffers.lists)],
-            scatter: None,
-            step: &pipelines.gather.entries[0],
-            forces: &pipelines.gather.entries[1],
-            step_name: "gather.wgsl step",
-        },
+        Mode::Gather => {
+            let [step, forces, step_touching, forces_touching] = &pipelines.gather.entries;
+            ForcesKernel {
+                layout: &pipelines.gather.layout,
+                bindings: [Some(&buffers.chain), Some(&buffers.start), Some(&buffers.incident), Some(&buffers.lists)],
+                scatter: None,
+                step: if self_contact { step_touching } else { step },
+                forces: if self_contact { forces_touching } else { forces },
+                step_name: "gather.wgsl step",
+            }
+        }
         Mode::FixedPointAtomic => ForcesKernel {
             layout: &pipelines.fixed.layout,
             bindings: [Some(&buffers.chain), Some(&buffers.contacts), Some(&buffers.acc), Some(&buffers.status)],

@@ -412,7 +412,7 @@ impl GpuFabric {
     fn forces_once(&mut self, forces: &mut Vec<V3<f32>>) -> Result<(), BackendError> {
         let n = self.model.node_count();
         self.mark_stale();
-        let kernel = forces_kernel(self.mode, &self.gpu.pipelines, &self.buffers);
+        let kernel = forces_kernel(self.mode, self.model.self_contact(), &self.gpu.pipelines, &self.buffers);
         let group = self.groups.forces_only.at(self.parity);
         let workgroups = |threads: usize| self.gpu.groups(threads as u32).unwrap_or((1, 1));
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());

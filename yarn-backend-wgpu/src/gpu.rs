@@ -50,11 +50,14 @@ pub(crate) enum Slot {
 /// The compiled passes.
 #[derive(Debug)]
 pub(crate) struct Pipelines {
-    /// Entry points `step`, `forces`.
-    pub(crate) gather: PassPipelines<2>,
+    /// Entry points `step`, `forces`, and with self-contact
+    /// `step_touching`, `forces_touching`.
+    pub(crate) gather: PassPipelines<4>,
     /// Entry points `scatter`, `step`, `forces`.
     pub(crate) fixed: PassPipelines<3>,
-    pub(crate) friction: PassPipelines<1>,
+    /// Entry points `main`, and with self-contact and friction
+    /// `main_touching`.
+    pub(crate) friction: PassPipelines<2>,
     pub(crate) pins: PassPipelines<1>,
     pub(crate) fused: PassPipelines<1>,
     pub(crate) reseat: PassPipelines<1>,
@@ -171,7 +174,7 @@ impl Gpu {
                 &device,
                 &shaders::GATHER,
                 &[Uniform, Read, ReadWrite, ReadWrite, Read, Read, Read, ReadWrite],
-                ["step", "forces"],
+                ["step", "forces", "step_touching", "forces_touching"],
             ),
             fixed: build(
                 &device,
@@ -183,7 +186,7 @@ impl Gpu {
                 &device,
                 &shaders::FRICTION,
                 &[Uniform, Read, Read, ReadWrite, ReadWrite, Read, Read, ReadWrite, Read],
-                ["main"],
+                ["main", "main_touching"],
             ),
             pins: build(&device, &shaders::PINS, &[Uniform, ReadWrite, ReadWrite, Read, ReadWrite], ["main"]),
             fused: build(

@@ -115,8 +115,9 @@ impl GpuFabric {
         }
     }
 
-    /// Workgroups for a gather forces pass (entry points `step` and
-    /// `forces`), which sums the pushes with self-contact on.
+    /// Workgroups for a gather forces pass, which with self-contact on
+    /// (entry points `step_touching` and `forces_touching`) sums the
+    /// pushes.
     pub(crate) fn forces_workgroups(&self) -> (u32, u32) {
         self.node_workgroups(self.model.self_contact())
     }
@@ -152,7 +153,7 @@ impl GpuFabric {
             next = Parity { x: 1 - at.x, v: 1 - at.v };
         } else {
             self.list_plan(at, may_rebuild, each);
-            let forces = forces_kernel(self.mode, pipelines, &self.buffers);
+            let forces = forces_kernel(self.mode, self.model.self_contact(), pipelines, &self.buffers);
             let group = groups.step.at(at);
             if let Some(scatter) = forces.scatter {
                 let workgroups = self.workgroups(self.model.node_count().max(self.model.contacts().len()));
@@ -176,12 +177,12 @@ impl GpuFabric {
             });
             if friction {
                 let group = groups.friction.at(at);
-                let pipeline = &pipelines.friction.entries[0];
                 let segment_sums = self.model.self_contact() && self.model.coeffs().friction > 0.0;
+                let [plain, touching] = &pipelines.friction.entries;
                 each(&Dispatch {
                     pass: "friction.wgsl",
                     stages: FRICTION_AND_MOVE,
-                    pipeline,
+                    pipeline: if segment_sums { touching } else { plain },
                     group,
                     workgroups: self.node_workgroups(segment_sums),
                     indirect: None,

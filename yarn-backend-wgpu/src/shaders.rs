@@ -47,7 +47,8 @@ impl Pass {
 }
 
 /// Gather mode's forces and damped velocity update (entry points `step`
-/// and `forces`).
+/// and `forces`, and with self-contact `step_touching` and
+/// `forces_touching`).
 pub const GATHER: Pass = Pass {
     name: "gather.wgsl",
     uses: &[NODE_FORCE, LISTS, TOUCH, WATCH, UPDATE],
@@ -56,7 +57,8 @@ pub const GATHER: Pass = Pass {
 /// Fixed-point mode's scatter, then its velocity update (entry points
 /// `scatter`, `step` and `forces`).
 pub const FIXED: Pass = Pass { name: "fixed.wgsl", uses: &[UPDATE], body: include_str!("../shaders/fixed.wgsl") };
-/// Friction and the move, both modes (entry point `main`).
+/// Friction and the move, both modes (entry point `main`, and with
+/// self-contact and friction `main_touching`).
 pub const FRICTION: Pass = Pass {
     name: "friction.wgsl",
     uses: &[NODE_FRICTION, LISTS, TOUCH, WATCH],
