@@ -6,10 +6,11 @@
 //
 // With self-contact and friction (entry point `main_touching`, which the
 // backend chooses then, so that `main` compiles none of it), the
-// self-contacts' changes are summed here, segment by segment, and a node adds the sum of the segment it
-// starts and then of the one it ends, taken from the thread before it as
-// in `gather.wgsl` (a workgroup covers WORKGROUP − 1 nodes). CPU twin: the
-// friction pass and segment sums of yarn-backend-cpu's `fabric/touching.rs`.
+// self-contacts' changes are summed here, segment by segment, and a node
+// adds the sum of the segment it starts and then of the one it ends,
+// taken from the thread before it as in `gather.wgsl` (a workgroup covers
+// WORKGROUP − 1 nodes). CPU twin: the friction pass and segment sums of
+// yarn-backend-cpu's `fabric/touching.rs`.
 // A segment visits only the slots that pushed, from none to a dozen, so a
 // thread looping over its own kept a warp busy as long as its fullest
 // segment (a fifth of the lanes busy, on average). Instead a workgroup
@@ -112,8 +113,8 @@ fn segment_friction(s: u32, end: u32) -> Sums {
 }
 
 // This thread's node's self-contact friction change: the sum of the
-// segment it starts, then of the one it ends (`node_of` sets it; zero
-// without self-contact or friction).
+// segment it starts, then of the one it ends (`touching_node_of` sets it;
+// zero in `main`).
 var<private> self_contact_change: vec3<f32>;
 
 // With self-contact: the node this thread takes, NONE for none, once the

@@ -40,9 +40,8 @@
 // alike in length. Each segment is still summed by one thread in its own
 // slot order, so the sums do not depend on which thread sums it.
 
-// Per thread: the node its segment ends at (NONE for none), and the
-// segment's sums on its first node and on that one and how many of its
-// pairs push.
+// Per thread's segment: the node it ends at (NONE for none), its sums on
+// its first node and on its last, and how many of its pairs push.
 var<workgroup> ends: array<u32, WORKGROUP>;
 var<workgroup> firsts: array<vec3<f32>, WORKGROUP>;
 var<workgroup> lasts: array<vec3<f32>, WORKGROUP>;
