@@ -28,7 +28,7 @@
 // first thread take the node their segment starts: the sum on a node from
 // the segment it ends comes from the thread before, through workgroup
 // memory, and only the counts of pushing pairs, which friction reads, go
-// out to memory. A workgroup covers WORKGROUP − 1 nodes; its first thread's
+// out to memory, in v*'s fourth component. A workgroup covers WORKGROUP − 1 nodes; its first thread's
 // segment is summed again as the workgroup before ends with it. The first
 // node of a closed yarn, whose segment before it closes the yarn
 // elsewhere, sums that one itself.
@@ -131,7 +131,7 @@ fn touching_node_of(group: vec3<u32>, local: vec3<u32>, groups: vec3<u32>) -> u3
     }
     pushed_first = firsts[t];
     pushed_last = ended.last;
-    store_pushing(s, pushing_counts[t], ended.pushing);
+    node_pushing = pushing_counts[t] + ended.pushing;
     return s;
 }
 

@@ -11,9 +11,6 @@
 //   segment it starts has, and which of its first 32 push (`gather.wgsl`);
 // - the position it was at when the lists were last built (the anchor), as
 //   f32 bits, x, y and z;
-// - how many pairs push the node, as f32 bits: those of the segment it
-//   starts and of the one it ends, written by the forces pass, read by
-//   friction's (`pushing_at`);
 // - `p.slots` candidate rows: the partner segments, sorted, slot k of
 //   every segment in row k.
 
@@ -38,8 +35,7 @@ const NEXT: u32 = 1u;
 const COUNT: u32 = 2u;
 const PUSHING: u32 = 3u;
 const ANCHOR: u32 = 4u;
-const PUSHED: u32 = 7u;
-const SLOTS: u32 = 8u;
+const SLOTS: u32 = 7u;
 
 // Where field `row` of node (or segment) i is.
 fn field_at(i: u32, row: u32) -> u32 {

@@ -124,14 +124,16 @@ struct Sums {
 
 const NO_SUMS: Sums = Sums(vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
 
-// A pair's push, or with `friction` its friction change; zero where the
-// pair is surely out of reach (`apart`), as the exact test would find it.
+// A pair's push, zero where the pair is surely out of reach (`apart`), as
+// the exact test would find it; or with `friction` its friction change,
+// which friction's pass asks only of pairs that pushed at these positions,
+// never apart.
 fn pair_values(pair: Pair, friction: bool) -> Quad {
-    if apart(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1, p.reach) {
-        return NO_QUAD;
-    }
     if friction {
         return pair_friction(pair.x, pair.w, pair.sharing);
+    }
+    if apart(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1, p.reach) {
+        return NO_QUAD;
     }
     return pair_forces(pair.x.p0, pair.x.p1, pair.x.q0, pair.x.q1);
 }
@@ -182,17 +184,12 @@ fn segment_pushes(s: u32, end: u32, marked: ptr<function, u32>) -> Sums {
     return sums;
 }
 
-// Store how many pairs push node i: those of the segment it starts
-// (`started`) and of the one it ends (`ended`), summed once here so that
-// friction's pass reads one word a node (`pushing_at`).
-fn store_pushing(i: u32, started: f32, ended: f32) {
-    lists[field_at(i, PUSHED)] = bitcast<u32>(started + ended);
-}
-
 // How many pairs push node i, as the gather's pass counted them
-// (`step::pushing_pairs`).
+// (`step::pushing_pairs`): those of the segment it starts and of the one
+// it ends, summed once there and kept in v*'s fourth component
+// (`update.wgsl`'s `node_pushing`).
 fn pushing_at(i: u32) -> f32 {
-    return bitcast<f32>(lists[field_at(i, PUSHED)]);
+    return v[i].w;
 }
 
 // Where node i's velocity is final (after friction, or v* without it):

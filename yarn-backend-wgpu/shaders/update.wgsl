@@ -9,12 +9,18 @@
 // points of its own around `step_at` and `forces_at` (the gather's with
 // self-contact).
 
+// How many self-contact pairs push the node this thread takes, set by the
+// gather's `touching_node_of` (0 elsewhere). `step_at` keeps it in v*'s
+// fourth component, where friction's pass reads it (`pushing_at`) beside
+// the velocity it loads anyway.
+var<private> node_pushing: f32;
+
 fn step_at(i: u32) {
     if i >= p.nodes {
         return;
     }
     let velocity = damped_velocity(v[i].xyz, with_colliders(total_force(i), x[i].xyz));
-    v[i] = vec4<f32>(velocity, 0.0);
+    v[i] = vec4<f32>(velocity, node_pushing);
     if (p.flags & FRICTION_ON) == 0u {
         watch_speed(i, velocity);
         let at = x[i].xyz + mul3(velocity, p.h);

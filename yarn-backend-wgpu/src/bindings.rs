@@ -146,7 +146,7 @@ pub(crate) mod rows {
     pub(crate) const COUNT: usize = 2;
     #[cfg(test)]
     pub(crate) const ANCHOR: usize = 4;
-    pub(crate) const SLOTS: usize = 8;
+    pub(crate) const SLOTS: usize = 7;
 
     /// Where field `row` of node i lies in lists of `nodes` nodes.
     pub(crate) fn at(nodes: usize, i: usize, row: usize) -> usize {
