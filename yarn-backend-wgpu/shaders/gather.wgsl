@@ -28,10 +28,10 @@
 // first thread take the node their segment starts: the sum on a node from
 // the segment it ends comes from the thread before, through workgroup
 // memory, and only the counts of pushing pairs, which friction reads, go
-// out to memory, in v*'s fourth component. A workgroup covers WORKGROUP − 1 nodes; its first thread's
-// segment is summed again as the workgroup before ends with it. The first
-// node of a closed yarn, whose segment before it closes the yarn
-// elsewhere, sums that one itself.
+// out to memory, in v*'s fourth component. A workgroup covers WORKGROUP −
+// 1 nodes; its first thread's segment is summed again as the workgroup
+// before ends with it. The first node of a closed yarn, whose segment
+// before it closes the yarn elsewhere, sums that one itself.
 //
 // A warp loops over its segments' candidates as often as its fullest
 // segment has them, so the workgroup's segments are first sorted by how
