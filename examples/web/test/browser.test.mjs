@@ -331,7 +331,7 @@ test('the floor checkbox drops the patch onto a floor, which it lands on and doe
     const start = await opened.evaluate(() => window.yarnify.positions());
     const lowest = (p) => Math.min(...p.filter((_, i) => i % 3 === 1));
     // With self-contact and the floor on SwiftShader on a 2-core machine,
-    // this test took 224–236 s in all, and once ran past a limit of 180 s
+    // this test took 224–284 s in all, and once ran past a limit of 180 s
     // here for its hundred frames.
     await opened.waitForFunction((n) => window.yarnify.status().frames >= n, state.frames + 100, { timeout: 420_000 });
     const later = await opened.evaluate(() => window.yarnify.positions());
